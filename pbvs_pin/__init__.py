@@ -1,0 +1,67 @@
+"""pbvs_pin: passivity-based visual servoing of mobile manipulators, built on Pinocchio.
+
+The model layer turns URDF into what the controller needs: :class:`MobileManipulator` (one
+Pinocchio model of platform, arm and camera frame), base adapters, the pinhole camera of the
+paper's eq. (2), feature sets with the Jacobians of eq. (3), dynamics in actuated coordinates
+and the velocity-reference model of eq. (1).
+"""
+
+from pbvs_pin.base import BaseAdapter, DifferentialDrive, FixedBase, Omnidirectional
+from pbvs_pin.camera import CameraIntrinsics, point_interaction_matrix
+from pbvs_pin.catalogue import ROBOT_NAMES
+from pbvs_pin.dynamics import DynamicTerms, VelocityLoop, rigid_body_terms
+from pbvs_pin.exceptions import (
+    DriveAxleNotFound,
+    FrameNotFound,
+    GainError,
+    NoMovableJoint,
+    NonFiniteValue,
+    PbvsError,
+    PointBehindCamera,
+    RobotNotFound,
+    ScenarioError,
+    ShapeError,
+    UrdfError,
+)
+from pbvs_pin.features import FeatureSet, ImageMeasurement, ImagePointFeatures, TwoSphereFeatures
+from pbvs_pin.manipulability import (
+    arm_manipulability,
+    manipulability,
+    max_manipulability_posture,
+    whole_body_manipulability,
+)
+from pbvs_pin.robot import MobileManipulator, load_robot
+
+__all__ = [
+    "ROBOT_NAMES",
+    "BaseAdapter",
+    "CameraIntrinsics",
+    "DifferentialDrive",
+    "DriveAxleNotFound",
+    "DynamicTerms",
+    "FeatureSet",
+    "FixedBase",
+    "FrameNotFound",
+    "GainError",
+    "ImageMeasurement",
+    "ImagePointFeatures",
+    "MobileManipulator",
+    "NoMovableJoint",
+    "NonFiniteValue",
+    "Omnidirectional",
+    "PbvsError",
+    "PointBehindCamera",
+    "RobotNotFound",
+    "ScenarioError",
+    "ShapeError",
+    "TwoSphereFeatures",
+    "UrdfError",
+    "VelocityLoop",
+    "arm_manipulability",
+    "load_robot",
+    "manipulability",
+    "max_manipulability_posture",
+    "point_interaction_matrix",
+    "rigid_body_terms",
+    "whole_body_manipulability",
+]

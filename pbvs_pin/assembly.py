@@ -1,0 +1,356 @@
+"""URDF side of a mobile manipulator: load, mount an arm on a platform, add the camera frame.
+
+Everything here edits URDF descriptions with yourdfpy and returns one URDF string that
+:class:`pbvs_pin.robot.MobileManipulator` hands to Pinocchio. A URDF source is a file path or an
+example-robot-data name (``"ur5"``, ``"panda"``, ``"tiago"``, ...).
+
+For a differential-drive platform the drive axle is found from the URDF: the continuous or
+revolute joints hanging from the platform's root through fixed joints only, with their axis
+along the platform's y axis, at least one on each side. A link ``drive_footprint`` is added on
+the floor below the axle midpoint and becomes the root, so that Pinocchio's planar root joint
+sits exactly where the no-side-slip constraint holds.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import yourdfpy
+
+from pbvs_pin import frames
+from pbvs_pin.base import DifferentialDrive
+from pbvs_pin.exceptions import (
+    DriveAxleNotFound,
+    FrameNotFound,
+    RobotNotFound,
+    UrdfError,
+)
+from pbvs_pin.shipped import shipped_urdf
+
+_AXIS_TOLERANCE = 0.99
+"""|cos| between a wheel axis and the platform's y axis above which it counts as a wheel."""
+
+
+@dataclass
+class UrdfSource:
+    """A loaded URDF and what is needed to find its meshes.
+
+    Attributes:
+        robot: The yourdfpy description (edited in place by the assembly functions).
+        label: File path or name it was loaded from, used in error messages.
+        package_dirs: Folders against which ``package://`` mesh URIs resolve.
+    """
+
+    robot: yourdfpy.Robot
+    label: str
+    package_dirs: tuple[str, ...]
+
+    def link_names(self) -> list[str]:
+        """Names of all links."""
+        return [link.name for link in self.robot.links]
+
+    def root_link(self) -> str:
+        """The single link that is no joint's child.
+
+        Raises:
+            UrdfError: If there is not exactly one such link.
+        """
+        children = {joint.child for joint in self.robot.joints}
+        roots = [name for name in self.link_names() if name not in children]
+        if len(roots) != 1:
+            raise UrdfError(self.label, f"expected one root link, found {roots}")
+        return roots[0]
+
+    def require_link(self, name: str) -> None:
+        """Raise :class:`FrameNotFound` unless ``name`` is a link of this description."""
+        if name not in self.link_names():
+            raise FrameNotFound(name, self.link_names(), self.label)
+
+
+def _example_robot_data(name: str) -> tuple[Path, tuple[str, ...]] | None:
+    """URDF path and package folders of an example-robot-data robot, or None if unknown."""
+    from example_robot_data.robots_loader import ROBOTS
+
+    if name not in ROBOTS:
+        return None
+    loader = ROBOTS[name]()
+    robots_dir = Path(loader.model_path)
+    return Path(loader.df_path), (str(robots_dir), str(robots_dir.parents[1]))
+
+
+def _resolve(source: str | Path) -> tuple[Path, tuple[str, ...]]:
+    """File path and package folders of a URDF source (path, shipped name, or ERD name)."""
+    path = Path(source)
+    if path.suffix.lower() == ".urdf" or path.exists():
+        if not path.is_file():
+            raise UrdfError(str(source), "file not found (expected a path to a .urdf file)")
+        return path, (str(path.resolve().parent),)
+    shipped = shipped_urdf(str(source))
+    if shipped is not None:
+        return shipped, (str(shipped.parent),)
+    erd = _example_robot_data(str(source))
+    if erd is None:
+        from example_robot_data.robots_loader import ROBOTS
+
+        from pbvs_pin.shipped import SHIPPED_URDFS
+
+        raise RobotNotFound(str(source), [*SHIPPED_URDFS, *ROBOTS])
+    return erd
+
+
+def _absolute_mesh_paths(robot: yourdfpy.Robot, folder: Path) -> None:
+    """Rewrite relative mesh file names as absolute paths, so the URDF can move."""
+    for link in robot.links:
+        for element in [*link.visuals, *link.collisions]:
+            mesh = element.geometry.mesh if element.geometry is not None else None
+            if mesh is None or mesh.filename is None:
+                continue
+            if "://" in mesh.filename or Path(mesh.filename).is_absolute():
+                continue
+            mesh.filename = str((folder / mesh.filename).resolve())
+
+
+def load_urdf(source: str | Path) -> UrdfSource:
+    """Load a URDF file or an example-robot-data robot with yourdfpy.
+
+    Args:
+        source: A path to a ``.urdf`` file, a shipped file name (``"pioneer3at"``), or an
+            example-robot-data name (``"ur5"``).
+
+    Returns:
+        The description with mesh paths made absolute.
+
+    Raises:
+        UrdfError: If the file is missing, is not well-formed XML, or is not a URDF.
+        RobotNotFound: If the name is neither a file nor a known robot.
+    """
+    path, package_dirs = _resolve(source)
+    try:
+        urdf = yourdfpy.URDF.load(
+            str(path),
+            build_scene_graph=False,
+            load_meshes=False,
+            load_collision_meshes=False,
+            filename_handler=yourdfpy.filename_handler_null,
+        )
+    except Exception as err:  # yourdfpy raises lxml, ValueError, AttributeError...
+        raise UrdfError(str(path), f"not a valid URDF ({type(err).__name__}: {err})") from err
+    if urdf.robot is None or not urdf.robot.links:
+        raise UrdfError(str(path), "not a valid URDF (expected <robot> with at least one <link>)")
+    robot = copy.deepcopy(urdf.robot)
+    _absolute_mesh_paths(robot, path.resolve().parent)
+    return UrdfSource(robot, str(path) if path.exists() else str(source), package_dirs)
+
+
+def _fixed_chain_poses(robot: yourdfpy.Robot, root: str) -> dict[str, np.ndarray]:
+    """Pose in ``root`` of every link reached from ``root`` through fixed joints only.
+
+    Returns:
+        Link name to homogeneous transform, shape (4, 4).
+    """
+    poses = {root: np.eye(4)}
+    frontier = [root]
+    while frontier:
+        parent = frontier.pop()
+        for joint in robot.joints:
+            if joint.parent == parent and joint.type == "fixed":
+                poses[joint.child] = poses[parent] @ _origin(joint)
+                frontier.append(joint.child)
+    return poses
+
+
+def _origin(joint: yourdfpy.Joint) -> np.ndarray:
+    """Joint origin as a (4, 4) transform (identity when absent)."""
+    return np.eye(4) if joint.origin is None else np.asarray(joint.origin, dtype=float)
+
+
+def _wheel_radius(link: yourdfpy.Link) -> float | None:
+    """Radius of a wheel link's first cylinder or sphere (collision first), if any."""
+    for element in [*link.collisions, *link.visuals]:
+        geometry = element.geometry
+        if geometry is None:
+            continue
+        if geometry.cylinder is not None:
+            return float(geometry.cylinder.radius)
+        if geometry.sphere is not None:
+            return float(geometry.sphere.radius)
+    return None
+
+
+@dataclass(frozen=True)
+class DriveAxle:
+    """The drive axle found in a platform URDF.
+
+    Attributes:
+        drive: The differential-drive adapter (wheel radius, track, wheel speed limit).
+        footprint: Pose in the platform's root link of the floor point below the axle
+            midpoint, x forward. Shape (4, 4).
+        wheel_joints: Names of the drive-wheel joints.
+    """
+
+    drive: DifferentialDrive
+    footprint: np.ndarray
+    wheel_joints: tuple[str, ...]
+
+
+def find_drive_axle(source: UrdfSource) -> DriveAxle:
+    """Find the drive wheels of a differential-drive platform.
+
+    Args:
+        source: The platform's (or whole robot's) description.
+
+    Returns:
+        The drive axle.
+
+    Raises:
+        DriveAxleNotFound: If there is no wheel on one side, a wheel has no cylinder or sphere
+            geometry to give its radius, or no velocity limit.
+    """
+    robot = source.robot
+    root = source.root_link()
+    poses = _fixed_chain_poses(robot, root)
+    links = {link.name: link for link in robot.links}
+    wheels = []
+    for joint in robot.joints:
+        if joint.type not in ("continuous", "revolute") or joint.parent not in poses:
+            continue
+        pose = poses[joint.parent] @ _origin(joint)
+        axis = pose[:3, :3] @ np.asarray(joint.axis if joint.axis is not None else [1, 0, 0])
+        if abs(axis[1]) / np.linalg.norm(axis) >= _AXIS_TOLERANCE:
+            wheels.append((joint, pose[:3, 3]))
+    left = [w for w in wheels if w[1][1] > 0.0]
+    right = [w for w in wheels if w[1][1] < 0.0]
+    if not left or not right:
+        found = [joint.name for joint, _ in wheels]
+        raise DriveAxleNotFound(
+            source.label,
+            "no usable drive axle: expected continuous or revolute wheel joints with their "
+            "axis along the platform's y axis, hanging from the root link "
+            f"{root!r} through fixed joints, on both sides (y > 0 and y < 0); found {found}",
+        )
+    radii, speeds = [], []
+    for joint, _ in wheels:
+        radius = _wheel_radius(links[joint.child])
+        if radius is None:
+            raise DriveAxleNotFound(
+                source.label,
+                f"wheel link {joint.child!r} has no cylinder or sphere geometry giving its radius",
+            )
+        if joint.limit is None or not joint.limit.velocity:
+            raise DriveAxleNotFound(
+                source.label, f"wheel joint {joint.name!r} has no <limit velocity=...>"
+            )
+        radii.append(radius)
+        speeds.append(float(joint.limit.velocity))
+    centres = np.array([position for _, position in wheels])
+    track = float(np.mean([p[1] for _, p in left]) - np.mean([p[1] for _, p in right]))
+    footprint = np.eye(4)
+    footprint[:3, 3] = [*centres[:, :2].mean(axis=0), centres[:, 2].mean() - np.mean(radii)]
+    drive = DifferentialDrive(float(np.mean(radii)), track, float(min(speeds)))
+    return DriveAxle(drive, footprint, tuple(joint.name for joint, _ in wheels))
+
+
+def add_drive_footprint(source: UrdfSource, axle: DriveAxle) -> None:
+    """Make a new root link ``drive_footprint`` at the axle's floor point (in place)."""
+    root = source.root_link()
+    if frames.DRIVE_FOOTPRINT in source.link_names():
+        raise UrdfError(source.label, f"link name {frames.DRIVE_FOOTPRINT!r} is reserved")
+    source.robot.links.insert(0, yourdfpy.Link(name=frames.DRIVE_FOOTPRINT))
+    source.robot.joints.insert(
+        0,
+        yourdfpy.Joint(
+            name=f"{frames.DRIVE_FOOTPRINT}_joint",
+            type="fixed",
+            parent=frames.DRIVE_FOOTPRINT,
+            child=root,
+            origin=np.linalg.inv(axle.footprint),
+        ),
+    )
+
+
+def add_fixed_frame(source: UrdfSource, parent: str, name: str, pose: pin.SE3) -> None:
+    """Attach a massless link ``name`` to ``parent`` at ``pose`` (in place).
+
+    Raises:
+        FrameNotFound: If ``parent`` is not a link.
+        UrdfError: If ``name`` is already taken.
+    """
+    source.require_link(parent)
+    if name in source.link_names():
+        raise UrdfError(source.label, f"cannot add frame {name!r}: a link of that name exists")
+    source.robot.links.append(yourdfpy.Link(name=name))
+    source.robot.joints.append(
+        yourdfpy.Joint(
+            name=f"{name}_joint", type="fixed", parent=parent, child=name, origin=pose.homogeneous
+        )
+    )
+
+
+def _rename_clashes(arm: UrdfSource, taken_links: set[str], taken_joints: set[str]) -> dict:
+    """Prefix ``arm_`` to the arm's link and joint names that clash (in place).
+
+    Returns:
+        Map from the arm's original link names to their names after renaming.
+    """
+    links = {}
+    for link in arm.robot.links:
+        new = f"arm_{link.name}" if link.name in taken_links else link.name
+        links[link.name] = new
+        link.name = new
+    for joint in arm.robot.joints:
+        joint.parent, joint.child = links[joint.parent], links[joint.child]
+        if joint.name in taken_joints:
+            joint.name = f"arm_{joint.name}"
+    return links
+
+
+def mount_arm(platform: UrdfSource, arm: UrdfSource, mount: pin.SE3) -> dict[str, str]:
+    """Fix ``arm``'s root link to ``platform``'s root link at ``mount`` (platform edited in place).
+
+    Args:
+        platform: The platform description; receives the arm's links and joints.
+        arm: The arm description.
+        mount: Pose of the arm's root link in the platform's root link.
+
+    Returns:
+        Map from the arm's original link names to their names in the assembled description
+        (clashing names get an ``arm_`` prefix).
+    """
+    base_root = platform.root_link()
+    arm_root = arm.root_link()
+    taken_links = set(platform.link_names())
+    taken_joints = {joint.name for joint in platform.robot.joints}
+    names = _rename_clashes(arm, taken_links, taken_joints)
+    robot = platform.robot
+    robot.links.extend(arm.robot.links)
+    robot.joints.append(
+        yourdfpy.Joint(
+            name="arm_mount_joint" if "arm_mount_joint" not in taken_joints else "pbvs_arm_mount",
+            type="fixed",
+            parent=base_root,
+            child=names[arm_root],
+            origin=mount.homogeneous,
+        )
+    )
+    robot.joints.extend(arm.robot.joints)
+    known = {material.name for material in robot.materials}
+    robot.materials.extend(m for m in arm.robot.materials if m.name not in known)
+    robot.name = f"{robot.name}_{arm.robot.name}"
+    platform.package_dirs = tuple(dict.fromkeys(platform.package_dirs + arm.package_dirs))
+    platform.label = f"{platform.label} + {arm.label}"
+    return names
+
+
+def to_xml(source: UrdfSource) -> str:
+    """Serialise a description to a URDF string."""
+    urdf = yourdfpy.URDF(
+        robot=source.robot,
+        build_scene_graph=False,
+        load_meshes=False,
+        filename_handler=yourdfpy.filename_handler_null,
+    )
+    return urdf.write_xml_string()

@@ -1,0 +1,164 @@
+"""Pinhole camera with the paper's sign convention, eq. (2).
+
+Image coordinates ``xi = [u, v]`` are pixels measured from the principal point, with the sign
+of eq. (2): ``xi = -(f / z) [x, y]`` for a point ``[x, y, z]`` in the camera optical frame
+(z forward, x right, y down). So ``u`` grows to the left and ``v`` grows upwards in the image.
+Pixel rows and columns, used for the image bounds, are ``col = cx - u`` and ``row = cy - v``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from pbvs_pin.exceptions import GainError, PointBehindCamera
+from pbvs_pin.validation import as_array
+
+MIN_DEPTH = 1e-3
+"""Smallest depth [m] at which a point counts as in front of the camera."""
+
+
+@dataclass(frozen=True)
+class CameraIntrinsics:
+    """Pinhole intrinsics.
+
+    The defaults model the paper's camera: 628 x 582 px images and a 1/3" sensor; the focal
+    length (600 px, a 4.6 mm lens on that sensor) is not given in the paper.
+
+    Attributes:
+        focal_px: Focal length f [px].
+        width: Image width [px].
+        height: Image height [px].
+    """
+
+    focal_px: float = 600.0
+    width: int = 628
+    height: int = 582
+
+    def __post_init__(self) -> None:
+        """Reject non-positive values."""
+        for name in ("focal_px", "width", "height"):
+            value = getattr(self, name)
+            if not np.isfinite(value) or value <= 0:
+                raise GainError(f"CameraIntrinsics.{name}: expected > 0, got {value}")
+
+    @property
+    def principal_point(self) -> tuple[float, float]:
+        """``(cx, cy)``: the image centre in pixel columns and rows."""
+        return 0.5 * self.width, 0.5 * self.height
+
+    def project(self, point_in_camera: npt.ArrayLike) -> np.ndarray:
+        r"""Project a point given in the optical frame, eq. (2).
+
+        .. math:: \xi = -\frac{f}{z} \begin{bmatrix} x \\ y \end{bmatrix}
+
+        Args:
+            point_in_camera: ``[x, y, z]`` [m]. Shape (3,).
+
+        Returns:
+            ``[u, v]`` [px]. Shape (2,).
+
+        Raises:
+            PointBehindCamera: If ``z <= MIN_DEPTH``.
+        """
+        x, y, z = as_array("point_in_camera", point_in_camera, (3,))
+        if z <= MIN_DEPTH:
+            raise PointBehindCamera(float(z))
+        return -self.focal_px / z * np.array([x, y])
+
+    def project_jacobian(self, point_in_camera: npt.ArrayLike) -> np.ndarray:
+        r"""Derivative of :meth:`project` with respect to the point.
+
+        .. math:: \frac{\partial \xi}{\partial p} =
+                  \begin{bmatrix} -f/z & 0 & -u/z \\ 0 & -f/z & -v/z \end{bmatrix}
+
+        Args:
+            point_in_camera: ``[x, y, z]`` [m]. Shape (3,).
+
+        Returns:
+            Shape (2, 3) [px/m].
+        """
+        u, v = self.project(point_in_camera)
+        z = float(np.asarray(point_in_camera, dtype=float)[2])
+        f = self.focal_px
+        return np.array([[-f / z, 0.0, -u / z], [0.0, -f / z, -v / z]])
+
+    def to_pixel(self, xi: npt.ArrayLike) -> np.ndarray:
+        """Image coordinates ``[u, v]`` to pixel ``[col, row]``. Shape (..., 2)."""
+        xi = np.asarray(xi, dtype=float)
+        cx, cy = self.principal_point
+        return np.stack([cx - xi[..., 0], cy - xi[..., 1]], axis=-1)
+
+    def in_image(self, xi: npt.ArrayLike, margin: float = 0.0) -> bool:
+        """Whether every image point ``[u, v]`` (shape (..., 2)) is inside the image.
+
+        Args:
+            xi: Image points [px].
+            margin: Distance [px] the points must keep from the border.
+        """
+        pixel = self.to_pixel(xi)
+        cols, rows = pixel[..., 0], pixel[..., 1]
+        return bool(
+            np.all(cols >= margin)
+            and np.all(cols <= self.width - margin)
+            and np.all(rows >= margin)
+            and np.all(rows <= self.height - margin)
+        )
+
+    def depth_from_diameter(self, diameter_px: float, diameter_m: float) -> float:
+        r"""Depth of a sphere from its apparent diameter (paper §2.2).
+
+        .. math:: z = \frac{f D}{d_{px}}
+
+        Args:
+            diameter_px: Apparent diameter d [px].
+            diameter_m: True diameter D [m].
+
+        Returns:
+            Depth z [m].
+
+        Raises:
+            PointBehindCamera: If the apparent diameter is not positive.
+        """
+        if not np.isfinite(diameter_px) or diameter_px <= 0.0:
+            raise PointBehindCamera(float("inf") if diameter_px == 0 else -1.0)
+        return self.focal_px * diameter_m / diameter_px
+
+    def apparent_diameter(self, depth: float, diameter_m: float) -> float:
+        """Apparent diameter [px] of a sphere of diameter ``diameter_m`` at ``depth`` [m]."""
+        return self.focal_px * diameter_m / depth
+
+
+def point_interaction_matrix(focal_px: float, xi: npt.ArrayLike, depth: float) -> np.ndarray:
+    r"""Interaction matrix of one image point in the paper's sign convention.
+
+    With normalised coordinates ``xn = -u / f`` and ``yn = -v / f``, the classic point
+    interaction matrix (Chaumette & Hutchinson 2006) scaled by ``-f``:
+
+    .. math:: \dot\xi = -f \begin{bmatrix}
+              -1/z & 0 & x_n/z & x_n y_n & -(1 + x_n^2) & y_n \\
+              0 & -1/z & y_n/z & 1 + y_n^2 & -x_n y_n & -x_n \end{bmatrix}
+              \begin{bmatrix} v_c \\ \omega_c \end{bmatrix}
+
+    where ``[v_c; w_c]`` is the camera's twist expressed in the camera frame (Pinocchio's
+    ``LOCAL`` convention) and the point is fixed in the world.
+
+    Args:
+        focal_px: Focal length f [px].
+        xi: ``[u, v]`` [px]. Shape (2,).
+        depth: Depth z [m].
+
+    Returns:
+        Shape (2, 6) [px/m, px/rad].
+    """
+    u, v = np.asarray(xi, dtype=float)
+    xn, yn, z = -u / focal_px, -v / focal_px, depth
+    normalised = np.array(
+        [
+            [-1.0 / z, 0.0, xn / z, xn * yn, -(1.0 + xn * xn), yn],
+            [0.0, -1.0 / z, yn / z, 1.0 + yn * yn, -xn * yn, -xn],
+        ]
+    )
+    return -focal_px * normalised

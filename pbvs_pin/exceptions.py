@@ -1,0 +1,134 @@
+"""Exceptions raised by pbvs_pin.
+
+Every error a user can cause derives from :class:`PbvsError`, so that a caller can catch the
+package's errors without catching Python's own, and every message names the file, frame,
+field or value at fault and what was expected.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+
+class PbvsError(Exception):
+    """Base class of every error raised by pbvs_pin."""
+
+
+class UrdfError(PbvsError):
+    """A URDF file cannot be read or does not describe what was asked for."""
+
+    def __init__(self, source: str, problem: str) -> None:
+        """Name the file and the problem.
+
+        Args:
+            source: Path of the URDF file, or the name it was loaded by.
+            problem: What is wrong and what was expected.
+        """
+        self.source = source
+        super().__init__(f"{source}: {problem}")
+
+
+class FrameNotFound(PbvsError):
+    """A link or frame name does not exist in a robot description."""
+
+    def __init__(self, name: str, available: Iterable[str], where: str = "") -> None:
+        """Name the missing frame and list the valid names.
+
+        Args:
+            name: The name asked for.
+            available: The names that do exist.
+            where: The file or robot that was searched.
+        """
+        self.name = name
+        self.available = sorted(available)
+        place = f" in {where}" if where else ""
+        super().__init__(f"frame {name!r} not found{place}; available: {', '.join(self.available)}")
+
+
+class NoMovableJoint(UrdfError):
+    """The arm has no joint between its root and the camera frame."""
+
+
+class DriveAxleNotFound(UrdfError):
+    """A differential-drive platform has no usable pair of left and right drive wheels."""
+
+
+class ShapeError(PbvsError):
+    """An array has the wrong shape."""
+
+    def __init__(self, name: str, expected: tuple[int, ...], got: tuple[int, ...]) -> None:
+        """Name the array and both shapes.
+
+        Args:
+            name: Name of the argument or field.
+            expected: The expected shape.
+            got: The shape received.
+        """
+        self.name = name
+        super().__init__(f"{name}: expected shape {expected}, got {got}")
+
+
+class NonFiniteValue(PbvsError):
+    """An array holds NaN or infinity where finite numbers are required."""
+
+    def __init__(self, name: str) -> None:
+        """Name the array.
+
+        Args:
+            name: Name of the argument or field.
+        """
+        self.name = name
+        super().__init__(f"{name}: expected finite values, got NaN or infinity")
+
+
+class GainError(PbvsError):
+    """A gain or parameter is outside its valid range."""
+
+
+class PointBehindCamera(PbvsError):
+    """A point to project lies behind (or on) the camera's image plane."""
+
+    def __init__(self, depth: float) -> None:
+        """Record the offending depth.
+
+        Args:
+            depth: Depth of the point along the optical axis [m].
+        """
+        self.depth = depth
+        super().__init__(
+            f"point at depth {depth:.4g} m is not in front of the camera (expected depth > 0)"
+        )
+
+
+class RobotNotFound(PbvsError):
+    """A robot name is neither a shipped robot, an example-robot-data name, nor a file."""
+
+    def __init__(self, name: str, available: Iterable[str]) -> None:
+        """Name the unknown robot and list the valid names.
+
+        Args:
+            name: The name asked for.
+            available: Valid names.
+        """
+        self.name = name
+        super().__init__(
+            f"robot {name!r} is not a URDF file, a shipped robot or an example-robot-data "
+            f"name; shipped robots: {', '.join(sorted(available))}"
+        )
+
+
+class ScenarioError(PbvsError):
+    """A scenario file is missing, malformed, or holds an invalid value."""
+
+    def __init__(self, source: str, field: str, problem: str) -> None:
+        """Name the file, the field and the problem.
+
+        Args:
+            source: Path or name of the scenario.
+            field: Dotted name of the field at fault ("" for the whole file).
+            problem: What is wrong and what was expected.
+        """
+        self.source = source
+        self.field = field
+        where = f"{source}: {field}" if field else source
+        super().__init__(f"{where}: {problem}")

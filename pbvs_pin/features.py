@@ -1,0 +1,211 @@
+r"""Image feature sets and the Jacobians of eq. (3).
+
+A feature set turns the image points of the target into the feature vector ``xi`` (r entries,
+pixels) and gives the two Jacobians of eq. (3),
+
+.. math:: \dot\xi = J(q, \xi, z)\, v + J_o(q, \xi, z)\, \dot p,
+
+where ``v`` are the robot's actuated velocities and ``p`` the target's world position. Both
+are assembled from the point interaction matrix of :mod:`pbvs_pin.camera`, the camera frame
+Jacobian in Pinocchio's ``LOCAL`` convention and the base's selection matrix ``S``.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from pbvs_pin.camera import CameraIntrinsics, point_interaction_matrix
+from pbvs_pin.exceptions import GainError, ShapeError
+from pbvs_pin.validation import as_array
+
+if TYPE_CHECKING:
+    from pbvs_pin.robot import MobileManipulator
+
+
+@dataclass(frozen=True)
+class ImageMeasurement:
+    """What one camera frame gives about the target.
+
+    Attributes:
+        points: Image coordinates ``[u, v]`` of each target point [px]. Shape (k, 2).
+        depths: Depth of each point along the optical axis [m]. Shape (k,).
+    """
+
+    points: np.ndarray
+    depths: np.ndarray
+
+
+class FeatureSet(abc.ABC):
+    """Which image quantities form the feature vector, and their Jacobians."""
+
+    @property
+    @abc.abstractmethod
+    def n_points(self) -> int:
+        """Number of target points k the features are built from."""
+
+    @property
+    @abc.abstractmethod
+    def rows(self) -> np.ndarray:
+        """Indices into the stacked ``[u1, v1, u2, v2, ...]`` that form ``xi``. Shape (r,)."""
+
+    @property
+    def size(self) -> int:
+        """Number of features r."""
+        return len(self.rows)
+
+    def features(self, measurement: ImageMeasurement) -> np.ndarray:
+        """Feature vector ``xi`` [px]. Shape (r,)."""
+        return measurement.points.reshape(-1)[self.rows]
+
+    def interaction_matrix(
+        self, camera: CameraIntrinsics, measurement: ImageMeasurement
+    ) -> np.ndarray:
+        """Feature rate from the camera twist in the camera frame.
+
+        Args:
+            camera: Intrinsics.
+            measurement: Image points and depths.
+
+        Returns:
+            Shape (r, 6) [px/m, px/rad].
+        """
+        stacked = np.vstack(
+            [
+                point_interaction_matrix(camera.focal_px, point, depth)
+                for point, depth in zip(measurement.points, measurement.depths, strict=True)
+            ]
+        )
+        return stacked[self.rows]
+
+    def object_jacobian(
+        self,
+        camera: CameraIntrinsics,
+        measurement: ImageMeasurement,
+        rotation_world_to_camera: np.ndarray,
+    ) -> np.ndarray:
+        r"""``J_o`` of eq. (3): feature rate from the target's world velocity.
+
+        Every target point translates with the same world velocity ``pdot``:
+
+        .. math:: J_o = \frac{\partial \xi}{\partial p_c}\, {}^c R_w,\qquad
+                  \frac{\partial \xi_i}{\partial p_c} =
+                  \begin{bmatrix} -f/z_i & 0 & -u_i/z_i \ 0 & -f/z_i & -v_i/z_i \end{bmatrix}
+
+        Args:
+            camera: Intrinsics.
+            measurement: Image points and depths.
+            rotation_world_to_camera: ``cRw``, maps world vectors into the camera frame.
+                Shape (3, 3).
+
+        Returns:
+            Shape (r, 3) [px/m].
+        """
+        f = camera.focal_px
+        blocks = [
+            np.array([[-f / z, 0.0, -u / z], [0.0, -f / z, -v / z]])
+            for (u, v), z in zip(measurement.points, measurement.depths, strict=True)
+        ]
+        return (np.vstack(blocks) @ rotation_world_to_camera)[self.rows]
+
+    def measure(
+        self, robot: MobileManipulator, q: npt.ArrayLike, points_world: npt.ArrayLike
+    ) -> ImageMeasurement:
+        """Exact image of target points for a robot configuration.
+
+        Args:
+            robot: The robot carrying the camera.
+            q: Pinocchio configuration. Shape (nq,).
+            points_world: Target points in the world [m]. Shape (k, 3).
+
+        Returns:
+            Image points and true depths.
+
+        Raises:
+            PointBehindCamera: If a point is not in front of the camera.
+        """
+        points = as_array("points_world", points_world, (self.n_points, 3))
+        pose = robot.camera_pose(q)
+        in_camera = (points - pose.translation) @ pose.rotation
+        image = np.array([robot.camera.project(p) for p in in_camera])
+        return ImageMeasurement(image, in_camera[:, 2].copy())
+
+    def jacobians(
+        self, robot: MobileManipulator, q: npt.ArrayLike, *points_world: npt.ArrayLike
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Features and both Jacobians of eq. (3) from world target points.
+
+        Args:
+            robot: The robot carrying the camera.
+            q: Pinocchio configuration. Shape (nq,).
+            *points_world: The k target points in the world [m], each shape (3,).
+
+        Returns:
+            ``(xi, J, J_o)``: features [px] shape (r,), total Jacobian shape (r, robot.n),
+            object Jacobian shape (r, 3).
+        """
+        if len(points_world) != self.n_points:
+            raise ShapeError("points_world", (self.n_points, 3), (len(points_world), 3))
+        measurement = self.measure(robot, q, np.array(points_world, dtype=float))
+        pose = robot.camera_pose(q)
+        total = self.interaction_matrix(robot.camera, measurement) @ robot.camera_jacobian(q)
+        objects = self.object_jacobian(robot.camera, measurement, pose.rotation.T)
+        return self.features(measurement), total, objects
+
+
+@dataclass(frozen=True)
+class TwoSphereFeatures(FeatureSet):
+    """The paper's features: two vertically aligned spheres, ``xi = [u1, v1, v2]``.
+
+    Sphere 1 is the upper one. Depth comes from each sphere's apparent diameter.
+
+    Attributes:
+        diameter: Sphere diameter D [m].
+    """
+
+    diameter: float
+
+    def __post_init__(self) -> None:
+        """Reject a non-positive diameter."""
+        if not np.isfinite(self.diameter) or self.diameter <= 0.0:
+            raise GainError(f"TwoSphereFeatures.diameter: expected > 0 m, got {self.diameter}")
+
+    @property
+    def n_points(self) -> int:
+        """Two sphere centres."""
+        return 2
+
+    @property
+    def rows(self) -> np.ndarray:
+        """``[u1, v1, v2]``."""
+        return np.array([0, 1, 3])
+
+
+@dataclass(frozen=True)
+class ImagePointFeatures(FeatureSet):
+    """Generic features: both coordinates of k image points, ``xi = [u1, v1, ..., uk, vk]``.
+
+    Attributes:
+        count: Number of points k.
+    """
+
+    count: int
+
+    def __post_init__(self) -> None:
+        """Reject a non-positive count."""
+        if self.count < 1:
+            raise GainError(f"ImagePointFeatures.count: expected >= 1, got {self.count}")
+
+    @property
+    def n_points(self) -> int:
+        """k."""
+        return self.count
+
+    @property
+    def rows(self) -> np.ndarray:
+        """All coordinates."""
+        return np.arange(2 * self.count)

@@ -1,0 +1,17 @@
+"""Names of the frames pbvs_pin adds to or expects in a robot model.
+
+Body axes follow REP-103 (x forward, y left, z up); the camera optical frame follows REP-103's
+``_optical`` suffix (z forward, x right, y down).
+"""
+
+WORLD = "world"
+"""The fixed frame, Pinocchio's ``universe``; z is up."""
+
+DRIVE_FOOTPRINT = "drive_footprint"
+"""Frame added under a platform: on the floor, below the drive-axle midpoint, x forward."""
+
+CAMERA_OPTICAL = "camera_optical_frame"
+"""Default name of the camera optical frame (z forward, x right, y down)."""
+
+LASER = "laser_link"
+"""Default name of the platform's 2D laser rangefinder frame, if the platform has one."""

@@ -1,0 +1,375 @@
+"""MobileManipulator: one Pinocchio model of platform, arm and camera frame.
+
+The model's root joint comes from the base adapter (planar at the drive-axle midpoint for a
+differential drive). Only the joints between the root and the camera frame stay movable; any
+other joint (wheels, fingers, a head) is locked at its neutral position with
+``pin.buildReducedModel``. Queries take the configuration ``q`` explicitly, following
+Pinocchio's Model/Data split; the robot owns one ``pin.Data`` as scratch space.
+
+Velocities come in two flavours: Pinocchio's ``v_pin`` (``nv`` entries) and the actuated
+velocities ``v = [base velocities, arm joint rates]`` (``n`` entries), with ``v_pin = S v``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from pbvs_pin import frames
+from pbvs_pin.assembly import (
+    UrdfSource,
+    add_drive_footprint,
+    add_fixed_frame,
+    find_drive_axle,
+    load_urdf,
+    mount_arm,
+    to_xml,
+)
+from pbvs_pin.base import BaseAdapter, FixedBase, Omnidirectional
+from pbvs_pin.camera import CameraIntrinsics
+from pbvs_pin.exceptions import FrameNotFound, GainError, NoMovableJoint, UrdfError
+from pbvs_pin.validation import as_array, as_se3
+
+DEFAULT_JOINT_SPEED = 1.0
+"""Velocity limit [rad/s or m/s] used for a joint whose URDF gives none."""
+
+BASE_KINDS = ("differential", "omnidirectional", "fixed")
+"""Base kinds accepted by name."""
+
+
+def _base_adapter(kind: str | BaseAdapter, source: UrdfSource) -> BaseAdapter:
+    """Adapter for a base kind, editing ``source`` to add the drive footprint if needed."""
+    if isinstance(kind, BaseAdapter):
+        return kind
+    if kind == "differential":
+        axle = find_drive_axle(source)
+        add_drive_footprint(source, axle)
+        return axle.drive
+    if kind == "omnidirectional":
+        return Omnidirectional()
+    if kind == "fixed":
+        return FixedBase()
+    raise GainError(f"base: expected one of {BASE_KINDS} or a BaseAdapter, got {kind!r}")
+
+
+def _build_model(xml: str, label: str, root: pin.JointModel | None) -> pin.Model:
+    """Pinocchio model from a URDF string, with errors that name the source."""
+    try:
+        if root is None:
+            return pin.buildModelFromXML(xml)
+        return pin.buildModelFromXML(xml, root)
+    except (RuntimeError, ValueError) as err:
+        raise UrdfError(label, f"Pinocchio cannot build a model: {err}") from err
+
+
+def _build_visuals(
+    model: pin.Model, xml: str, label: str, package_dirs: tuple[str, ...]
+) -> pin.GeometryModel:
+    """Visual geometry model; a missing mesh is an error naming the file."""
+    try:
+        return pin.buildGeomFromUrdfString(
+            model, xml, pin.GeometryType.VISUAL, package_dirs=list(package_dirs)
+        )
+    except (RuntimeError, ValueError) as err:
+        raise UrdfError(label, f"cannot load visual geometry: {err}") from err
+
+
+class MobileManipulator:
+    """A mobile manipulator with an eye-in-hand camera, as one Pinocchio model.
+
+    Attributes:
+        model: The reduced Pinocchio model (root joint, then the camera chain's joints).
+        data: Scratch ``pin.Data`` for ``model``.
+        visual_model: Visual geometry, for viewers.
+        base: The base adapter.
+        camera: Camera intrinsics.
+        camera_frame: Name of the camera optical frame.
+        selection: ``S``, actuated to Pinocchio velocities. Shape (nv, n).
+        velocity_names: Names of the actuated velocities. Length n.
+        velocity_limits: Largest magnitude of each actuated velocity, SI units. Shape (n,).
+        source: File or name the robot was built from.
+        home_arm: Arm posture [rad or m] of :meth:`home`; zeros unless a recipe sets it.
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        visual_model: pin.GeometryModel,
+        base: BaseAdapter,
+        camera_frame: str,
+        camera: CameraIntrinsics,
+        source: str,
+    ) -> None:
+        """Wrap a Pinocchio model whose root joint matches ``base``.
+
+        Prefer :meth:`from_urdf`, :meth:`assemble` or :func:`pbvs_pin.load_robot`.
+
+        Raises:
+            FrameNotFound: If ``camera_frame`` is not a frame of ``model``.
+            NoMovableJoint: If no joint moves the camera other than the root joint.
+        """
+        if not model.existFrame(camera_frame):
+            raise FrameNotFound(camera_frame, [f.name for f in model.frames], source)
+        self.source = source
+        self.base = base
+        self.camera = camera
+        self.camera_frame = camera_frame
+        self.model, self.visual_model = _lock_off_chain(model, visual_model, camera_frame)
+        self.data = self.model.createData()
+        self.camera_frame_id = self.model.getFrameId(camera_frame)
+        n_root = base.selection().shape[0]
+        arm_joints = [
+            j for j in range(1, self.model.njoints) if self.model.joints[j].idx_v >= n_root
+        ]
+        if not arm_joints:
+            raise NoMovableJoint(
+                source, f"no movable joint between the base and camera frame {camera_frame!r}"
+            )
+        self.arm_joint_names = tuple(self.model.names[j] for j in arm_joints)
+        n_arm = self.model.nv - n_root
+        self.selection = np.zeros((self.model.nv, base.selection().shape[1] + n_arm))
+        self.selection[:n_root, : base.selection().shape[1]] = base.selection()
+        self.selection[n_root:, base.selection().shape[1] :] = np.eye(n_arm)
+        self.velocity_names = (*base.velocity_names, *self.arm_joint_names)
+        arm_limits = np.array(self.model.velocityLimit[n_root:], dtype=float)
+        arm_limits[~np.isfinite(arm_limits) | (arm_limits <= 0) | (arm_limits > 1e6)] = (
+            DEFAULT_JOINT_SPEED
+        )
+        self.velocity_limits = np.concatenate([base.velocity_limits(), arm_limits])
+        self.home_arm = np.zeros(self.n_arm)
+
+    # ------------------------------------------------------------------ builders
+    @classmethod
+    def from_urdf(
+        cls,
+        path: str,
+        camera_frame: str = frames.CAMERA_OPTICAL,
+        base: str | BaseAdapter = "differential",
+        camera: CameraIntrinsics | None = None,
+    ) -> MobileManipulator:
+        """Load one URDF that holds platform, arm and camera frame.
+
+        Args:
+            path: URDF file (or a shipped or example-robot-data name).
+            camera_frame: Name of the camera optical frame (z forward, x right, y down).
+            base: ``"differential"`` (drive axle found in the URDF), ``"omnidirectional"``,
+                ``"fixed"``, or a :class:`BaseAdapter`.
+            camera: Intrinsics; the paper's camera by default.
+
+        Raises:
+            UrdfError: Malformed file, or a platform without a usable drive axle.
+            FrameNotFound: If ``camera_frame`` does not exist.
+            NoMovableJoint: If no joint moves the camera.
+        """
+        source = load_urdf(path)
+        source.require_link(camera_frame)
+        return cls._from_source(source, camera_frame, base, camera)
+
+    @classmethod
+    def assemble(
+        cls,
+        base: str,
+        arm: str | None,
+        mount: pin.SE3 | npt.ArrayLike = (0, 0, 0, 0, 0, 0),
+        camera_link: str = "tool0",
+        camera_pose: pin.SE3 | npt.ArrayLike = (0, 0, 0, 0, 0, 0),
+        camera: CameraIntrinsics | None = None,
+        base_kind: str | BaseAdapter = "differential",
+    ) -> MobileManipulator:
+        """Mount an arm on a platform and attach the camera optical frame.
+
+        Args:
+            base: Platform URDF (path, ``"pioneer3at"``, or an example-robot-data name such as
+                ``"tiago"``, which then brings its own arm).
+            arm: Arm URDF (path or example-robot-data name), or None when ``base`` already
+                carries the arm.
+            mount: Pose of the arm's root link in the platform's root link, a ``pin.SE3`` or
+                ``(x, y, z, roll, pitch, yaw)`` [m, rad].
+            camera_link: Link (of the arm, by its own name) the camera is fixed to.
+            camera_pose: Pose of the optical frame (z forward, x right, y down) in
+                ``camera_link``.
+            camera: Intrinsics; the paper's camera by default.
+            base_kind: See :meth:`from_urdf`.
+
+        Raises:
+            UrdfError: Malformed file, or a platform without a usable drive axle.
+            FrameNotFound: If ``camera_link`` does not exist.
+            NoMovableJoint: If no joint moves the camera.
+        """
+        mount_pose = as_se3("mount", mount)
+        optical_pose = as_se3("camera_pose", camera_pose)
+        platform = load_urdf(base)
+        if arm is not None:
+            arm_source = load_urdf(arm)
+            arm_source.require_link(camera_link)
+            camera_link = mount_arm(platform, arm_source, mount_pose)[camera_link]
+        add_fixed_frame(platform, camera_link, frames.CAMERA_OPTICAL, optical_pose)
+        return cls._from_source(platform, frames.CAMERA_OPTICAL, base_kind, camera)
+
+    @classmethod
+    def _from_source(
+        cls,
+        source: UrdfSource,
+        camera_frame: str,
+        base: str | BaseAdapter,
+        camera: CameraIntrinsics | None,
+    ) -> MobileManipulator:
+        adapter = _base_adapter(base, source)
+        xml = to_xml(source)
+        model = _build_model(xml, source.label, adapter.root_joint())
+        visuals = _build_visuals(model, xml, source.label, source.package_dirs)
+        return cls(
+            model, visuals, adapter, camera_frame, camera or CameraIntrinsics(), source.label
+        )
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n(self) -> int:
+        """Number of actuated velocities."""
+        return self.selection.shape[1]
+
+    @property
+    def n_base(self) -> int:
+        """Number of actuated base velocities (2 for a differential drive)."""
+        return len(self.base.velocity_names)
+
+    @property
+    def n_arm(self) -> int:
+        """Number of arm joint rates."""
+        return self.n - self.n_base
+
+    # ------------------------------------------------------------------ configurations
+    def neutral(self) -> np.ndarray:
+        """Pinocchio's neutral configuration (base at the origin, arm joints at zero)."""
+        return pin.neutral(self.model)
+
+    def home(self) -> np.ndarray:
+        """Base at the origin, arm at ``home_arm`` (the camera looks forward)."""
+        return self.with_arm_positions(self.neutral(), self.home_arm)
+
+    def check_configuration(self, q: npt.ArrayLike) -> np.ndarray:
+        """``q`` as a finite float array of shape (nq,), or a ShapeError/NonFiniteValue."""
+        return as_array("q", q, (self.model.nq,))
+
+    def check_velocity(self, v: npt.ArrayLike, name: str = "v") -> np.ndarray:
+        """Actuated velocity as a finite float array of shape (n,)."""
+        return as_array(name, v, (self.n,))
+
+    def integrate(self, q: npt.ArrayLike, v: npt.ArrayLike, dt: float) -> np.ndarray:
+        """Configuration after moving with actuated velocity ``v`` for ``dt`` seconds.
+
+        Args:
+            q: Configuration. Shape (nq,).
+            v: Actuated velocity. Shape (n,).
+            dt: Duration [s].
+
+        Returns:
+            ``pin.integrate(q, S v dt)``. Shape (nq,).
+        """
+        return pin.integrate(self.model, q, self.selection @ (np.asarray(v) * dt))
+
+    def arm_positions(self, q: npt.ArrayLike) -> np.ndarray:
+        """Arm joint angles [rad] (or positions [m]) from a configuration. Shape (n_arm,).
+
+        Continuous joints (stored as cos/sin) give their angle.
+        """
+        q = np.asarray(q, dtype=float)
+        angles = []
+        for name in self.arm_joint_names:
+            joint = self.model.joints[self.model.getJointId(name)]
+            values = q[joint.idx_q : joint.idx_q + joint.nq]
+            angles.append(np.arctan2(values[1], values[0]) if joint.nq == 2 else values[0])
+        return np.array(angles)
+
+    def with_arm_positions(self, q: npt.ArrayLike, arm: npt.ArrayLike) -> np.ndarray:
+        """Copy of ``q`` with the arm joints set to ``arm`` [rad or m]. Shape (nq,)."""
+        q = np.array(q, dtype=float)
+        for name, value in zip(self.arm_joint_names, np.asarray(arm, dtype=float), strict=True):
+            joint = self.model.joints[self.model.getJointId(name)]
+            if joint.nq == 2:
+                q[joint.idx_q : joint.idx_q + 2] = np.cos(value), np.sin(value)
+            else:
+                q[joint.idx_q] = value
+        return q
+
+    def arm_position_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper arm joint limits; ``-inf``/``inf`` for continuous joints."""
+        lower, upper = [], []
+        for name in self.arm_joint_names:
+            joint = self.model.joints[self.model.getJointId(name)]
+            if joint.nq == 2:
+                lower.append(-np.inf)
+                upper.append(np.inf)
+            else:
+                lower.append(self.model.lowerPositionLimit[joint.idx_q])
+                upper.append(self.model.upperPositionLimit[joint.idx_q])
+        return np.array(lower), np.array(upper)
+
+    # ------------------------------------------------------------------ kinematics
+    def frame_pose(self, q: npt.ArrayLike, frame: str) -> pin.SE3:
+        """``world_T_frame`` for a named frame.
+
+        Raises:
+            FrameNotFound: If ``frame`` does not exist.
+        """
+        frame_id = self.frame_id(frame)
+        pin.framesForwardKinematics(self.model, self.data, self.check_configuration(q))
+        return pin.SE3(self.data.oMf[frame_id])
+
+    def frame_id(self, frame: str) -> int:
+        """Index of a named frame, or FrameNotFound listing the valid names."""
+        if not self.model.existFrame(frame):
+            raise FrameNotFound(frame, [f.name for f in self.model.frames], self.source)
+        return self.model.getFrameId(frame)
+
+    def camera_pose(self, q: npt.ArrayLike) -> pin.SE3:
+        """``world_T_camera``: pose of the optical frame in the world."""
+        pin.framesForwardKinematics(self.model, self.data, self.check_configuration(q))
+        return pin.SE3(self.data.oMf[self.camera_frame_id])
+
+    def camera_jacobian(self, q: npt.ArrayLike) -> np.ndarray:
+        """Camera twist in the camera frame from the actuated velocities.
+
+        ``J_cam(q) S`` with ``J_cam`` the optical frame's Jacobian in ``pin.LOCAL``.
+
+        Returns:
+            Shape (6, n): rows ``[v; w]`` [m/s, rad/s] of the camera in its own frame.
+        """
+        jacobian = pin.computeFrameJacobian(
+            self.model, self.data, self.check_configuration(q), self.camera_frame_id, pin.LOCAL
+        )
+        return jacobian @ self.selection
+
+    def base_pose(self, q: npt.ArrayLike) -> pin.SE3:
+        """``world_T_base``: pose of the root joint's frame (the drive footprint)."""
+        pin.forwardKinematics(self.model, self.data, self.check_configuration(q))
+        return pin.SE3(self.data.oMi[1] if self.model.njoints > 1 else pin.SE3.Identity())
+
+
+def _lock_off_chain(
+    model: pin.Model, visual_model: pin.GeometryModel, camera_frame: str
+) -> tuple[pin.Model, pin.GeometryModel]:
+    """Lock, at neutral, every joint that is not between the root and the camera frame."""
+    parent = model.frames[model.getFrameId(camera_frame)].parentJoint
+    chain = set(model.supports[parent])
+    locked = [j for j in range(1, model.njoints) if j not in chain]
+    if not locked:
+        return model, visual_model
+    return pin.buildReducedModel(model, visual_model, locked, pin.neutral(model))
+
+
+def load_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileManipulator:
+    """Load a shipped robot by name, or any URDF file holding the camera optical frame.
+
+    Args:
+        name: ``"pioneer_cyton"``, ``"pioneer_<arm>"`` for an example-robot-data arm on the
+            reference platform (``"pioneer_ur5"``, ...), ``"tiago"``, or a URDF path.
+        camera: Intrinsics; the paper's camera by default.
+
+    Raises:
+        RobotNotFound: If the name is unknown.
+    """
+    from pbvs_pin.catalogue import build_robot
+
+    return build_robot(name, camera)

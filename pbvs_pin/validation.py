@@ -1,0 +1,53 @@
+"""Conversion of user arrays, with errors that name the argument at fault."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from pbvs_pin.exceptions import NonFiniteValue, ShapeError
+
+
+def as_array(name: str, value: npt.ArrayLike, shape: tuple[int, ...]) -> np.ndarray:
+    """Convert ``value`` to a finite float array of the given shape.
+
+    Args:
+        name: Name of the argument, used in error messages.
+        value: Anything ``np.asarray`` accepts.
+        shape: The expected shape.
+
+    Returns:
+        A float64 array of shape ``shape``.
+
+    Raises:
+        ShapeError: If the shape differs.
+        NonFiniteValue: If an entry is NaN or infinite.
+    """
+    array = np.asarray(value, dtype=float)
+    if array.shape != shape:
+        raise ShapeError(name, shape, array.shape)
+    if not np.all(np.isfinite(array)):
+        raise NonFiniteValue(name)
+    return array
+
+
+def as_se3(name: str, pose: pin.SE3 | npt.ArrayLike) -> pin.SE3:
+    """Convert a pose to ``pinocchio.SE3``.
+
+    Args:
+        name: Name of the argument, used in error messages.
+        pose: A ``pinocchio.SE3``, or a 6-vector ``(x, y, z, roll, pitch, yaw)`` in m and rad
+            (rotation ``Rz(yaw) Ry(pitch) Rx(roll)``, as in URDF).
+
+    Returns:
+        The pose.
+
+    Raises:
+        ShapeError: If a vector is not of length 6.
+        NonFiniteValue: If an entry is NaN or infinite.
+    """
+    if isinstance(pose, pin.SE3):
+        return pin.SE3(pose)
+    xyz_rpy = as_array(name, pose, (6,))
+    return pin.SE3(pin.rpy.rpyToMatrix(xyz_rpy[3:]), xyz_rpy[:3])
