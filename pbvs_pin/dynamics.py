@@ -34,7 +34,7 @@ theta2/theta6 of the model identified by Martins et al., 2008)."""
 ARM_TIME_CONSTANT = 0.05
 """Default longest time constant [s] of an arm joint's velocity loop."""
 
-GRAVITY_SPEED_ERROR = 0.02
+GRAVITY_SPEED_ERROR = 0.001
 """Default largest steady velocity error [rad/s or m/s] gravity may cause on an arm joint at
 home: servo loops are stiff enough that the arm does not sag visibly."""
 
@@ -106,8 +106,9 @@ class VelocityLoop:
         """Gains from time constants at the home posture.
 
         ``K_v,i = M_v,ii(q_home) / tau_i`` for the base. An arm joint gets the larger of
-        ``M_v,ii / tau_arm`` and ``|g_v,i(q_home)| / gravity_error``, so that its loop is at
-        least that fast and gravity alone moves it by at most ``gravity_error``. The damping
+        ``sum_j |M_v,ij| / tau_arm`` and ``|g_v,i(q_home)| / gravity_error``: the row sum
+        (not only the diagonal) keeps a light joint on a heavy platform from being dragged by
+        the platform's accelerations, and gravity alone moves it by at most ``gravity_error``. The damping
         is the URDF's joint damping (zero for the base).
 
         Args:
@@ -123,8 +124,9 @@ class VelocityLoop:
             raise GainError(f"velocity loop time constants: expected > 0 s, got {taus}")
         terms = rigid_body_terms(robot, robot.home(), np.zeros(robot.n))
         gains = np.diag(terms.mass) / taus
-        stiff = np.abs(terms.gravity) / gravity_error
-        gains[robot.n_base :] = np.maximum(gains[robot.n_base :], stiff[robot.n_base :])
+        coupled = np.abs(terms.mass).sum(axis=1) / taus
+        stiff = np.maximum(coupled, np.abs(terms.gravity) / gravity_error)
+        gains[robot.n_base :] = stiff[robot.n_base :]
         damping = np.concatenate(
             [
                 np.zeros(robot.n_base),

@@ -12,6 +12,8 @@ velocities ``v = [base velocities, arm joint rates]`` (``n`` entries), with ``v_
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
@@ -222,6 +224,36 @@ class MobileManipulator:
         return cls(
             model, visuals, adapter, camera_frame, camera or CameraIntrinsics(), source.label
         )
+
+    def with_model_error(
+        self, kinematic_scale: float = 1.0, mass_scale: float = 1.0
+    ) -> MobileManipulator:
+        """A copy whose model is wrong by a factor: a controller's imperfect knowledge.
+
+        Args:
+            kinematic_scale: Factor on every joint and frame offset (1.2 is a 20% error).
+            mass_scale: Factor on every body's mass and rotational inertia.
+
+        Returns:
+            A new robot sharing nothing mutable with this one.
+        """
+        if not (kinematic_scale > 0 and mass_scale > 0):
+            raise GainError(
+                f"model error: expected positive scales, got {kinematic_scale}, {mass_scale}"
+            )
+        twin = copy.copy(self)
+        model = self.model.copy()
+        for i in range(model.njoints):
+            placement = model.jointPlacements[i]
+            model.jointPlacements[i] = pin.SE3(placement.rotation, kinematic_scale * placement.translation)
+            inertia = model.inertias[i]
+            model.inertias[i] = pin.Inertia(
+                mass_scale * inertia.mass, kinematic_scale * inertia.lever, mass_scale * inertia.inertia
+            )
+        for frame in model.frames:
+            frame.placement = pin.SE3(frame.placement.rotation, kinematic_scale * frame.placement.translation)
+        twin.model, twin.data = model, model.createData()
+        return twin
 
     # ------------------------------------------------------------------ sizes
     @property

@@ -1,0 +1,106 @@
+r"""Dynamic compensation, eq. (20).
+
+.. math:: v_{ref} = M(q)\left(\dot u - K_D (v - u)\right) + C(q, v)\, v + g(q)
+
+with ``M``, ``C``, ``g`` the velocity-reference model of eq. (1) built from the controller's
+own Pinocchio model (:meth:`pbvs_pin.dynamics.VelocityLoop.reference_model`). With an exact
+model it gives ``d/dt (v - u) = -K_D (v - u)``, eq. (21). The paper compensates the platform
+only; here the rows compensated are a setting.
+
+``udot`` is not measured: it is the derivative of the command, filtered with a first-order
+low-pass of time constant ``derivative_time_constant`` so that the camera's frame-to-frame
+jumps do not become spikes.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from pbvs_pin.exceptions import GainError
+
+if TYPE_CHECKING:
+    from pbvs_pin.dynamics import VelocityLoop
+    from pbvs_pin.robot import MobileManipulator
+
+
+class Compensation(Enum):
+    """Which rows of eq. (20) are applied."""
+
+    OFF = "off"
+    PLATFORM = "platform"
+    ALL = "all"
+
+
+class DynamicCompensator:
+    """Eq. (20) with a filtered command derivative.
+
+    Args:
+        robot: The controller's model of the robot.
+        loop: The controller's model of the low-level velocity loops.
+        mode: Rows to compensate.
+        k_d: Diagonal of ``K_D`` [1/s], one value or one per actuated velocity.
+        derivative_time_constant: Low-pass time constant of ``udot`` [s].
+    """
+
+    def __init__(
+        self,
+        robot: MobileManipulator,
+        loop: VelocityLoop,
+        mode: Compensation = Compensation.PLATFORM,
+        k_d: npt.ArrayLike = 0.3,
+        derivative_time_constant: float = 0.05,
+    ) -> None:
+        k_d = np.broadcast_to(np.asarray(k_d, dtype=float), (robot.n,)).copy()
+        if np.any(~np.isfinite(k_d)) or np.any(k_d <= 0):
+            raise GainError(f"DynamicCompensator.k_d: expected > 0 [1/s], got {k_d}")
+        if not derivative_time_constant > 0:
+            raise GainError(
+                "DynamicCompensator.derivative_time_constant: expected > 0 s, "
+                f"got {derivative_time_constant}"
+            )
+        self.robot, self.loop, self.mode = robot, loop, mode
+        self.k_d = k_d
+        self.tau = derivative_time_constant
+        self.rows = {
+            Compensation.OFF: np.zeros(robot.n, dtype=bool),
+            Compensation.PLATFORM: np.arange(robot.n) < robot.n_base,
+            Compensation.ALL: np.ones(robot.n, dtype=bool),
+        }[mode]
+        self.previous_u: np.ndarray | None = None
+        self.u_dot = np.zeros(robot.n)
+
+    def reset(self) -> None:
+        """Forget the previous command (the derivative restarts from zero)."""
+        self.previous_u = None
+        self.u_dot = np.zeros(self.robot.n)
+
+    def step(
+        self, q: np.ndarray, v: np.ndarray, u: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, float]:
+        """Velocity reference for the robot's low-level loops.
+
+        Args:
+            q: Configuration. Shape (nq,).
+            v: Measured actuated velocity. Shape (n,).
+            u: Kinematic command. Shape (n,).
+            dt: Time since the previous call [s].
+
+        Returns:
+            ``v_ref`` (shape (n,)), and ``V2 = |v - u|^2 / 2`` of eq. (22).
+        """
+        if self.previous_u is not None and dt > 0:
+            raw = (u - self.previous_u) / dt
+            blend = dt / (self.tau + dt)
+            self.u_dot = self.u_dot + blend * (raw - self.u_dot)
+        self.previous_u = u.copy()
+        error = v - u
+        storage = 0.5 * float(error @ error)
+        if not self.rows.any():
+            return u.copy(), storage
+        terms = self.loop.reference_model(self.robot, q, v)
+        full = terms.mass @ (self.u_dot - self.k_d * error) + terms.coriolis @ v + terms.gravity
+        return np.where(self.rows, full, u), storage

@@ -1,0 +1,295 @@
+r"""The passivity-based kinematic visual controller, eqs. (10) and (34).
+
+.. math:: u = -J^T K_c(\tilde\xi)\, \tilde\xi - J^\# J_o \hat{\dot p}
+              + (I - J^\# J)\, k_1 \tanh(k_2 \Lambda),\qquad
+          K_c(\tilde\xi) = \mathrm{diag}\!\left(\frac{k_i}{1 + |\tilde\xi_i|}\right),\qquad
+          J^\# = W^{-1} J^T (J W^{-1} J^T)^{-1}.
+
+Features enter the controller in *controller units* of ``feature_scale`` pixels
+(DESIGN.md §3): the feedback term scales with ``|J|^2``, and in raw pixels (``|J|`` of a few
+hundred) the paper's ``k_i = 0.15`` makes the sampled loop diverge. ``J# J_o`` and the
+null-space projector do not depend on the unit.
+
+Near a singular ``J W^-1 J^T`` the pseudo-inverse is damped (variable damping, Nakamura and
+Hanafusa 1986), and every command is scaled down uniformly, keeping its direction, to respect
+the robot's velocity limits. Non-finite inputs give a zero command and a flag, never NaN.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from pbvs_pin.exceptions import GainError, ShapeError
+
+
+def _positive_vector(name: str, value: npt.ArrayLike) -> np.ndarray:
+    """A 1-D array of finite positive entries, or a GainError naming ``name``."""
+    array = np.atleast_1d(np.asarray(value, dtype=float))
+    if array.ndim != 1 or not np.all(np.isfinite(array)) or np.any(array <= 0):
+        raise GainError(f"{name}: expected positive finite values, got {value!r}")
+    return array
+
+
+@dataclass(frozen=True)
+class ServoGains:
+    """Gains of eq. (10)/(34), defaults from the paper's experiments (§5).
+
+    Attributes:
+        k: ``k_i`` of ``K_c`` [1/s], one per feature or a scalar for all.
+        k1: Diagonal of ``k_1``, null-space velocity amplitude [m/s or rad/s]; length n or 1.
+        k2: Diagonal of ``k_2``, null-space slope [1 / unit of Lambda]; length n or 1.
+        feature_scale: Pixels per controller unit of feature [px].
+        weights: ``W``: its diagonal (length n or 1), or the full symmetric positive
+            definite matrix (n rows of n).
+        use_pseudoinverse_feedback: Use ``-J# K_c e`` instead of the paper's ``-J^T K_c e``.
+        damping_threshold: Smallest singular value of ``J W^-1/2`` (controller units) below
+            which the pseudo-inverse is damped.
+        max_damping: Damping factor at a singular ``J``.
+    """
+
+    k: tuple[float, ...] = (0.15,)
+    k1: tuple[float, ...] = (0.7, 1.0, 0.1, 0.1, 0.1)
+    k2: tuple[float, ...] = (0.2,)
+    feature_scale: float = 150.0
+    weights: tuple = (1.0,)
+    use_pseudoinverse_feedback: bool = False
+    damping_threshold: float = 0.05
+    max_damping: float = 0.05
+
+    def __post_init__(self) -> None:
+        """Validate every gain (GainError names the field)."""
+        for name in ("k", "k1", "k2"):
+            _positive_vector(f"ServoGains.{name}", getattr(self, name))
+        weights = np.asarray(self.weights, dtype=float)
+        if weights.ndim == 2:
+            symmetric = weights.shape[0] == weights.shape[1] and np.allclose(weights, weights.T)
+            if not symmetric or np.any(np.linalg.eigvalsh(weights) <= 0):
+                raise GainError(
+                    f"ServoGains.weights: expected a symmetric positive definite matrix, got "
+                    f"{weights.tolist()}"
+                )
+        else:
+            _positive_vector("ServoGains.weights", weights)
+        for name in ("feature_scale", "damping_threshold", "max_damping"):
+            _positive_vector(f"ServoGains.{name}", getattr(self, name))
+
+    def weight_inverse(self, size: int) -> np.ndarray:
+        """``W^-1``, shape (size, size).
+
+        Raises:
+            GainError: If ``W`` does not have ``size`` rows.
+        """
+        weights = np.asarray(self.weights, dtype=float)
+        if weights.ndim == 2:
+            if weights.shape != (size, size):
+                raise GainError(
+                    f"ServoGains.weights: expected a ({size}, {size}) matrix, got {weights.shape}"
+                )
+            return np.linalg.inv(weights)
+        return np.diag(1.0 / self.expand("weights", size))
+
+    def expand(self, name: str, size: int) -> np.ndarray:
+        """Gain ``name`` as a vector of ``size`` entries (a scalar is repeated).
+
+        Raises:
+            GainError: If the gain has neither 1 nor ``size`` entries.
+        """
+        values = np.asarray(getattr(self, name), dtype=float)
+        if values.size == 1:
+            return np.full(size, float(values[0]))
+        if values.size != size:
+            raise GainError(
+                f"ServoGains.{name}: expected 1 or {size} values, got {values.size}"
+            )
+        return values
+
+
+@dataclass(frozen=True)
+class ControlOutput:
+    """One step of the kinematic controller.
+
+    Attributes:
+        u: Velocity command [m/s, rad/s]. Shape (n,).
+        error: Feature error ``xi - xi_d`` [px]. Shape (r,).
+        storage: ``V1`` of eq. (7) in controller units [1/s].
+        nu: ``nu = J^T K_c e`` of eq. (9) in controller units. Shape (n,).
+        feedforward: ``J# J_o phat_dot`` [m/s, rad/s]. Shape (n,).
+        null_space: ``(I - J# J) k1 tanh(k2 Lambda)``. Shape (n,).
+        min_singular_value: Smallest singular value of ``J W^-1/2``, controller units.
+        damped: The pseudo-inverse was damped (near-singular J).
+        saturated: The command was scaled down to respect the velocity limits.
+        scale: Factor applied to the raw command (1 when not saturated).
+        valid: False when an input was missing or not finite (then ``u`` is zero).
+    """
+
+    u: np.ndarray
+    error: np.ndarray
+    storage: float
+    nu: np.ndarray
+    feedforward: np.ndarray
+    null_space: np.ndarray
+    min_singular_value: float
+    damped: bool
+    saturated: bool
+    scale: float = 1.0
+    valid: bool = True
+
+
+def storage_function(error_units: np.ndarray, k: np.ndarray) -> float:
+    r"""``V1`` of eq. (7) in closed form.
+
+    .. math:: V_1 = \int_0^{\tilde\xi} \eta^T K_c(\eta)\, d\eta
+              = \sum_i k_i \left(|\tilde\xi_i| - \ln(1 + |\tilde\xi_i|)\right)
+
+    Args:
+        error_units: Feature error in controller units. Shape (r,).
+        k: ``k_i``. Shape (r,).
+    """
+    magnitude = np.abs(error_units)
+    return float(np.sum(k * (magnitude - np.log1p(magnitude))))
+
+
+def saturate(u: np.ndarray, limits: np.ndarray) -> tuple[np.ndarray, float]:
+    """Scale ``u`` uniformly so that ``|u_i| <= limits_i``; return it and the factor."""
+    ratio = np.max(np.abs(u) / limits)
+    if ratio <= 1.0:
+        return u, 1.0
+    return u / ratio, 1.0 / ratio
+
+
+class PassivityController:
+    """Eq. (10)/(34) for one robot and one feature set.
+
+    Args:
+        gains: Controller gains.
+        velocity_limits: Largest magnitude of each command, SI units. Shape (n,).
+    """
+
+    def __init__(self, gains: ServoGains, velocity_limits: npt.ArrayLike) -> None:
+        self.gains = gains
+        self.velocity_limits = _positive_vector("velocity_limits", velocity_limits)
+        n = self.velocity_limits.size
+        self.n = n
+        self.k1 = gains.expand("k1", n)
+        self.k2 = gains.expand("k2", n)
+        self.weight_inverse = gains.weight_inverse(n)
+
+    def pseudo_inverse(self, jacobian: np.ndarray) -> tuple[np.ndarray, float, bool]:
+        r"""Weighted right pseudo-inverse, damped near singularities.
+
+        .. math:: J^\# = W^{-1} J^T (J W^{-1} J^T + \mu^2 I)^{-1},\quad
+                  \mu^2 = \mu_{max}^2 \left(1 - (\sigma_{min}/\sigma_0)^2\right)
+                  \text{ if } \sigma_{min} < \sigma_0 \text{ else } 0
+
+        Args:
+            jacobian: ``J`` in controller units. Shape (r, n).
+
+        Returns:
+            ``J#`` (shape (n, r)), ``sigma_min`` of ``J W^-1/2``, whether it was damped.
+        """
+        right = self.weight_inverse @ jacobian.T
+        gram = jacobian @ right
+        sigma_min = float(np.sqrt(max(np.linalg.eigvalsh(gram)[0], 0.0)))
+        threshold = self.gains.damping_threshold
+        damped = sigma_min < threshold
+        if damped:
+            mu2 = self.gains.max_damping**2 * (1.0 - (sigma_min / threshold) ** 2)
+            gram = gram + mu2 * np.eye(gram.shape[0])
+        return np.linalg.solve(gram, right.T).T, sigma_min, damped
+
+    def step(
+        self,
+        error_px: npt.ArrayLike,
+        jacobian_px: npt.ArrayLike,
+        object_jacobian_px: npt.ArrayLike,
+        target_velocity: npt.ArrayLike,
+        secondary: npt.ArrayLike,
+    ) -> ControlOutput:
+        """Compute the command ``u`` of eq. (34).
+
+        Args:
+            error_px: ``xi - xi_d`` [px]. Shape (r,).
+            jacobian_px: ``J`` [px per unit of v]. Shape (r, n).
+            object_jacobian_px: ``J_o`` [px/m]. Shape (r, 3).
+            target_velocity: Estimated target velocity ``phat_dot`` [m/s]. Shape (3,).
+            secondary: ``Lambda`` of eq. (16). Shape (n,).
+
+        Returns:
+            The command and its diagnostics. A non-finite input gives ``u = 0``,
+            ``valid = False``.
+
+        Raises:
+            ShapeError: If a shape is inconsistent.
+        """
+        error_px = np.asarray(error_px, dtype=float)
+        jacobian_px = np.asarray(jacobian_px, dtype=float)
+        r = error_px.shape[0]
+        self._check_shapes(r, jacobian_px, object_jacobian_px, target_velocity, secondary)
+        inputs = (error_px, jacobian_px, object_jacobian_px, target_velocity, secondary)
+        if not all(np.all(np.isfinite(x)) for x in inputs):
+            return self.zero_output(r)
+        scale = self.gains.feature_scale
+        error = error_px / scale
+        jacobian = jacobian_px / scale
+        k = self.gains.expand("k", r)
+        kc_error = k / (1.0 + np.abs(error)) * error
+        nu = jacobian.T @ kc_error
+        pinv, sigma_min, damped = self.pseudo_inverse(jacobian)
+        feedforward = pinv @ (np.asarray(object_jacobian_px) / scale) @ target_velocity
+        secondary_term = self.k1 * np.tanh(self.k2 * np.asarray(secondary, dtype=float))
+        null_space = secondary_term - pinv @ (jacobian @ secondary_term)
+        feedback = pinv @ kc_error if self.gains.use_pseudoinverse_feedback else nu
+        raw = -feedback - feedforward + null_space
+        u, factor = saturate(raw, self.velocity_limits)
+        if not np.all(np.isfinite(u)):
+            return self.zero_output(r)
+        return ControlOutput(
+            u=u,
+            error=error_px,
+            storage=storage_function(error, k),
+            nu=nu,
+            feedforward=feedforward,
+            null_space=null_space,
+            min_singular_value=sigma_min,
+            damped=damped,
+            saturated=factor < 1.0,
+            scale=factor,
+        )
+
+    def zero_output(self, r: int) -> ControlOutput:
+        """The safe command for a step without valid measurements: zero velocity."""
+        zero = np.zeros(self.n)
+        return ControlOutput(
+            u=zero,
+            error=np.full(r, np.nan),
+            storage=float("nan"),
+            nu=zero,
+            feedforward=zero,
+            null_space=zero,
+            min_singular_value=float("nan"),
+            damped=False,
+            saturated=False,
+            valid=False,
+        )
+
+    def _check_shapes(
+        self,
+        r: int,
+        jacobian: np.ndarray,
+        object_jacobian: npt.ArrayLike,
+        target_velocity: npt.ArrayLike,
+        secondary: npt.ArrayLike,
+    ) -> None:
+        """Raise ShapeError on any inconsistent shape."""
+        expected = {
+            "jacobian": (np.shape(jacobian), (r, self.n)),
+            "object_jacobian": (np.shape(object_jacobian), (r, 3)),
+            "target_velocity": (np.shape(target_velocity), (3,)),
+            "secondary": (np.shape(secondary), (self.n,)),
+        }
+        for name, (got, want) in expected.items():
+            if got != want:
+                raise ShapeError(name, want, got)

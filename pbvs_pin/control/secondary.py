@@ -1,0 +1,165 @@
+r"""Secondary objectives: the vector ``Lambda`` of eq. (16), projected into J's null space.
+
+.. math:: \Lambda = [-u_{obs},\ \omega_{obs},\ f_1(\tilde\theta_1), \dots,
+          f_{n_a}(\tilde\theta_{n_a})]^T
+
+Each objective adds its contribution to ``Lambda`` (shape (n,)); a scenario switches each
+one on or off.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from pbvs_pin.exceptions import GainError
+
+
+@dataclass(frozen=True)
+class SecondaryInput:
+    """What the secondary objectives see at one control step.
+
+    Attributes:
+        arm_positions: Arm joint positions from the encoders [rad or m]. Shape (n_arm,).
+        obstacle_distance: Shortest laser range d [m] (``inf`` when nothing is seen).
+        obstacle_angle: Incidence angle alpha [rad] of that range, measured clockwise from
+            the platform's forward axis (positive: obstacle to the right).
+        dt: Time since the previous control step [s].
+    """
+
+    arm_positions: np.ndarray
+    obstacle_distance: float
+    obstacle_angle: float
+    dt: float
+
+
+class SecondaryObjective(abc.ABC):
+    """One term of ``Lambda``."""
+
+    @abc.abstractmethod
+    def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
+        """This objective's part of ``Lambda``. Shape (n,)."""
+
+
+def _check_positive(owner: str, **values: float) -> None:
+    """GainError naming the first non-positive or non-finite value."""
+    for name, value in values.items():
+        if not np.isfinite(value) or value <= 0:
+            raise GainError(f"{owner}.{name}: expected > 0, got {value}")
+
+
+class ObstacleAvoidance(SecondaryObjective):
+    r"""Fictitious repulsion from the nearest obstacle through an impedance, eqs. (17)-(18).
+
+    .. math:: u_{obs} = Z^{-1}\!\left(k_{uobs} (d_0 - d) (\tfrac{\pi}{2} - |\alpha|)\right),\quad
+              \omega_{obs} = Z^{-1}\!\left(k_{\omega obs} (d_0 - d)\, \mathrm{sign}(\alpha)
+              (\tfrac{\pi}{2} - |\alpha|)\right)
+
+    for ``d < d_0`` (zero force beyond). The paper leaves ``Z`` open; here it is a
+    mass-damper ``Z(s) = m s + b`` acting from the fictitious force to the velocity, so
+    ``m du/dt + b u = F`` (first-order, static gain ``1/b``, time constant ``m/b``).
+
+    Args:
+        k_u: ``k_uobs`` [1/(rad s)].
+        k_w: ``k_wobs`` [1/s].
+        d0: Distance at which avoidance starts [m].
+        mass: Impedance inertia ``m`` [s].
+        damping: Impedance damping ``b`` [1].
+    """
+
+    def __init__(
+        self, k_u: float = 0.5, k_w: float = 0.9, d0: float = 1.0, mass: float = 0.5,
+        damping: float = 1.0,
+    ) -> None:
+        _check_positive("ObstacleAvoidance", k_u=k_u, k_w=k_w, d0=d0, mass=mass, damping=damping)
+        self.k_u, self.k_w, self.d0 = k_u, k_w, d0
+        self.mass, self.damping = mass, damping
+        self.velocity = np.zeros(2)
+
+    def force(self, distance: float, angle: float) -> np.ndarray:
+        """Fictitious force ``[F_u, F_w]`` of eqs. (17)-(18) before the impedance."""
+        if not np.isfinite(distance) or distance >= self.d0:
+            return np.zeros(2)
+        reach = (self.d0 - distance) * (0.5 * np.pi - abs(angle))
+        return np.array([self.k_u * reach, self.k_w * np.sign(angle) * reach])
+
+    def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
+        """``[-u_obs, omega_obs, 0, ...]``; the impedance state advances by ``state.dt``."""
+        force = self.force(state.obstacle_distance, state.obstacle_angle)
+        decay = np.exp(-self.damping / self.mass * state.dt)
+        self.velocity = decay * self.velocity + (1.0 - decay) * force / self.damping
+        out = np.zeros(n)
+        if n_base >= 2:
+            out[0], out[n_base - 1] = -self.velocity[0], self.velocity[1]
+        return out
+
+
+@dataclass(frozen=True)
+class ArmPosture(SecondaryObjective):
+    r"""Pull the arm towards ``theta_d`` (maximum manipulability), eq. (19).
+
+    .. math:: f_i(\tilde\theta_i) = k_{\Lambda i}\, (\theta_{id} - \theta_i)
+
+    Attributes:
+        target: ``theta_d`` [rad or m]. Shape (n_arm,).
+        gain: ``k_Lambda`` [1/s].
+    """
+
+    target: np.ndarray
+    gain: float = 1.0
+
+    def __post_init__(self) -> None:
+        """Reject a non-positive gain."""
+        _check_positive("ArmPosture", gain=self.gain)
+
+    def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
+        """``[0, ..., k (theta_d - theta)]``."""
+        out = np.zeros(n)
+        out[n_base:] = self.gain * (self.target - state.arm_positions)
+        return out
+
+
+@dataclass(frozen=True)
+class JointLimitAvoidance(SecondaryObjective):
+    """Push arm joints back when they come within ``margin`` of a position limit.
+
+    ``f_i = -gain (theta_i - (upper_i - margin))`` above ``upper - margin``, and symmetrically
+    near the lower limit; zero elsewhere and for continuous joints.
+
+    Attributes:
+        lower: Lower limits [rad or m]. Shape (n_arm,).
+        upper: Upper limits. Shape (n_arm,).
+        margin: Width of the active zone [rad or m].
+        gain: [1/s].
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    margin: float = 0.2
+    gain: float = 2.0
+
+    def __post_init__(self) -> None:
+        """Reject non-positive margin or gain."""
+        _check_positive("JointLimitAvoidance", margin=self.margin, gain=self.gain)
+
+    def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
+        """Restoring rates near the limits."""
+        theta = state.arm_positions
+        above = np.maximum(theta - (self.upper - self.margin), 0.0)
+        below = np.minimum(theta - (self.lower + self.margin), 0.0)
+        out = np.zeros(n)
+        out[n_base:] = -self.gain * np.nan_to_num(above + below, posinf=0.0, neginf=0.0)
+        return out
+
+
+def secondary_vector(
+    objectives: list[SecondaryObjective], state: SecondaryInput, n_base: int, n: int
+) -> np.ndarray:
+    """``Lambda``: the sum of every objective's contribution. Shape (n,)."""
+    total = np.zeros(n)
+    for objective in objectives:
+        total += objective.contribution(state, n_base, n)
+    return total

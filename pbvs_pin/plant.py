@@ -1,0 +1,60 @@
+r"""The simulated robot: eq. (1) with the robot's *true* parameters.
+
+The low-level loops apply ``tau = K_v (v_ref - v) - D v`` to the rigid-body dynamics in
+actuated coordinates,
+
+.. math:: M_v \dot v + C_v v + g_v = K_v (v_{ref} - v) - D v,
+
+which is eq. (1) multiplied by ``K_v``. The step is semi-implicit: the stiff loop and friction
+terms are taken at the new velocity, so stiff servo gains stay stable at a 1 ms step,
+
+.. math:: (M_v + h (K_v + D))\, v_{k+1} = M_v v_k + h (K_v v_{ref} - C_v v_k - g_v),
+
+then ``q_{k+1} = integrate(q_k, S v_{k+1} h)`` on the configuration manifold.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from pbvs_pin.dynamics import rigid_body_terms
+from pbvs_pin.exceptions import GainError
+
+if TYPE_CHECKING:
+    from pbvs_pin.dynamics import VelocityLoop
+    from pbvs_pin.robot import MobileManipulator
+
+
+class Plant:
+    """State ``(q, v)`` of the true robot, advanced by velocity references.
+
+    Args:
+        robot: The true robot.
+        loop: The true low-level velocity loops.
+        q: Initial configuration. Shape (nq,).
+        dt: Integration step [s].
+    """
+
+    def __init__(
+        self, robot: MobileManipulator, loop: VelocityLoop, q: npt.ArrayLike, dt: float = 1e-3
+    ) -> None:
+        if not 0 < dt <= 0.05:
+            raise GainError(f"plant step: expected 0 < dt <= 0.05 s, got {dt}")
+        self.robot, self.loop, self.dt = robot, loop, dt
+        self.q = robot.check_configuration(q).copy()
+        self.v = np.zeros(robot.n)
+        self._stiffness = np.diag(loop.gains + loop.damping)
+
+    def step(self, v_ref: np.ndarray) -> None:
+        """Advance by one step ``dt`` under the velocity reference ``v_ref`` (shape (n,))."""
+        h = self.dt
+        terms = rigid_body_terms(self.robot, self.q, self.v)
+        lhs = terms.mass + h * self._stiffness
+        rhs = terms.mass @ self.v + h * (
+            self.loop.gains * v_ref - terms.coriolis @ self.v - terms.gravity
+        )
+        self.v = np.linalg.solve(lhs, rhs)
+        self.q = self.robot.integrate(self.q, self.v, h)

@@ -1,0 +1,1 @@
+"""Closed-loop simulation: scenarios, targets, obstacles, laser, camera sensor, the loop."""
