@@ -108,8 +108,8 @@ class VelocityLoop:
         ``K_v,i = M_v,ii(q_home) / tau_i`` for the base. An arm joint gets the larger of
         ``sum_j |M_v,ij| / tau_arm`` and ``|g_v,i(q_home)| / gravity_error``: the row sum
         (not only the diagonal) keeps a light joint on a heavy platform from being dragged by
-        the platform's accelerations, and gravity alone moves it by at most ``gravity_error``. The damping
-        is the URDF's joint damping (zero for the base).
+        the platform's accelerations, and gravity alone moves it by at most
+        ``gravity_error``. The damping is the URDF's joint damping (zero for the base).
 
         Args:
             robot: The robot.

@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pbvs_pin.camera import CameraIntrinsics, point_interaction_matrix
-from pbvs_pin.exceptions import GainError, ShapeError
+from pbvs_pin.exceptions import GainError, PointBehindCamera, ShapeError
 from pbvs_pin.validation import as_array
 
 if TYPE_CHECKING:
@@ -134,6 +134,22 @@ class FeatureSet(abc.ABC):
         image = np.array([robot.camera.project(p) for p in in_camera])
         return ImageMeasurement(image, in_camera[:, 2].copy())
 
+    def visible(
+        self, robot: MobileManipulator, q: npt.ArrayLike, points_world: npt.ArrayLike
+    ) -> bool:
+        """Whether every target point is in front of the camera and inside the image.
+
+        Args:
+            robot: The robot carrying the camera.
+            q: Pinocchio configuration. Shape (nq,).
+            points_world: Target points in the world [m]. Shape (k, 3).
+        """
+        try:
+            measurement = self.measure(robot, q, points_world)
+        except PointBehindCamera:
+            return False
+        return robot.camera.in_image(measurement.points)
+
     def jacobians(
         self, robot: MobileManipulator, q: npt.ArrayLike, *points_world: npt.ArrayLike
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -202,7 +218,7 @@ class ImagePointFeatures(FeatureSet):
 
     @property
     def n_points(self) -> int:
-        """k."""
+        """K."""
         return self.count
 
     @property

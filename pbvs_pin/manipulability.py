@@ -64,9 +64,11 @@ def max_manipulability_posture(
     """Arm posture ``theta_d`` that maximises :func:`arm_manipulability` (paper §3.3, [31]).
 
     Bounded quasi-Newton (L-BFGS-B) from the home posture and from ``starts`` seeded random
-    postures within the joint limits, each kept ``LIMIT_MARGIN`` inside them; the best result
-    wins; among postures within ``TIE_TOLERANCE`` of the best (manipulability does not depend
-    on a first yaw joint, for example) the one closest to home wins. Manipulability does not depend on the base pose, so the base stays at the origin.
+    postures within the joint limits (``[-pi, pi]`` for a continuous joint), each kept
+    ``LIMIT_MARGIN`` inside them; the best result wins. Among postures within
+    ``TIE_TOLERANCE`` of the best (manipulability does not depend on a first yaw joint, for
+    example) the one closest to home wins. Manipulability does not depend on the base pose,
+    so the base stays at the origin.
 
     Args:
         robot: The robot.
@@ -77,8 +79,8 @@ def max_manipulability_posture(
         ``theta_d`` [rad or m]. Shape (n_arm,).
     """
     lower, upper = robot.arm_position_limits()
-    lower = np.maximum(lower, -np.pi) + LIMIT_MARGIN
-    upper = np.minimum(upper, np.pi) - LIMIT_MARGIN
+    lower = np.where(np.isfinite(lower), lower, -np.pi) + LIMIT_MARGIN
+    upper = np.where(np.isfinite(upper), upper, np.pi) - LIMIT_MARGIN
     base_q = robot.neutral()
 
     def cost(arm: np.ndarray) -> float:

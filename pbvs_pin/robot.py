@@ -245,13 +245,19 @@ class MobileManipulator:
         model = self.model.copy()
         for i in range(model.njoints):
             placement = model.jointPlacements[i]
-            model.jointPlacements[i] = pin.SE3(placement.rotation, kinematic_scale * placement.translation)
+            model.jointPlacements[i] = pin.SE3(
+                placement.rotation, kinematic_scale * placement.translation
+            )
             inertia = model.inertias[i]
             model.inertias[i] = pin.Inertia(
-                mass_scale * inertia.mass, kinematic_scale * inertia.lever, mass_scale * inertia.inertia
+                mass_scale * inertia.mass,
+                kinematic_scale * inertia.lever,
+                mass_scale * inertia.inertia,
             )
         for frame in model.frames:
-            frame.placement = pin.SE3(frame.placement.rotation, kinematic_scale * frame.placement.translation)
+            frame.placement = pin.SE3(
+                frame.placement.rotation, kinematic_scale * frame.placement.translation
+            )
         twin.model, twin.data = model, model.createData()
         return twin
 

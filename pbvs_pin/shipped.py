@@ -6,7 +6,6 @@ same files as the package data ``pbvs_pin.urdf``.
 
 from __future__ import annotations
 
-from importlib import resources
 from pathlib import Path
 
 SHIPPED_URDFS = ("pioneer3at", "cyton_alpha3", "pioneer_cyton")
@@ -18,7 +17,7 @@ def urdf_dir() -> Path:
     checkout = Path(__file__).resolve().parents[1] / "urdf"
     if checkout.is_dir():
         return checkout
-    return Path(str(resources.files("pbvs_pin.urdf")))
+    return Path(__file__).resolve().parent / "urdf"
 
 
 def shipped_urdf(name: str) -> Path | None:

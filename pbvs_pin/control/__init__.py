@@ -1,2 +1,5 @@
-"""Control laws: passivity-based kinematic controller, secondary objectives, dynamic
-compensation, and a classic IBVS baseline."""
+"""Control laws of the paper's Fig. 3.
+
+The passivity-based kinematic controller, secondary objectives, dynamic compensation, and a
+classic IBVS baseline.
+"""

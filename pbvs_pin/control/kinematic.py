@@ -101,9 +101,7 @@ class ServoGains:
         if values.size == 1:
             return np.full(size, float(values[0]))
         if values.size != size:
-            raise GainError(
-                f"ServoGains.{name}: expected 1 or {size} values, got {values.size}"
-            )
+            raise GainError(f"ServoGains.{name}: expected 1 or {size} values, got {values.size}")
         return values
 
 

@@ -13,7 +13,6 @@ import abc
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from pbvs_pin.exceptions import GainError
 
@@ -71,7 +70,11 @@ class ObstacleAvoidance(SecondaryObjective):
     """
 
     def __init__(
-        self, k_u: float = 0.5, k_w: float = 0.9, d0: float = 1.0, mass: float = 0.5,
+        self,
+        k_u: float = 0.5,
+        k_w: float = 0.9,
+        d0: float = 1.0,
+        mass: float = 0.5,
         damping: float = 1.0,
     ) -> None:
         _check_positive("ObstacleAvoidance", k_u=k_u, k_w=k_w, d0=d0, mass=mass, damping=damping)

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from pbvs_pin.catalogue import build_robot
 from pbvs_pin.camera import CameraIntrinsics
+from pbvs_pin.catalogue import build_robot
 from pbvs_pin.control.compensation import Compensation, DynamicCompensator
 from pbvs_pin.control.ibvs import ClassicIbvs
 from pbvs_pin.control.kinematic import PassivityController, ServoGains
@@ -134,12 +134,16 @@ def build(scenario: Scenario) -> Setup:
             "robot.initial_arm",
             lambda: robot.with_arm_positions(q0, scenario["robot"]["initial_arm"]),
         )
-    plant = Plant(robot, VelocityLoop.from_time_constants(robot), q0, scenario["simulation"]["plant_dt"])
+    plant = Plant(
+        robot, VelocityLoop.from_time_constants(robot), q0, scenario["simulation"]["plant_dt"]
+    )
     target_spec = scenario["target"]
     features = TwoSphereFeatures(target_spec["diameter"])
     xi0 = np.asarray(target_spec["xi0"], dtype=float)
     top = solve_target_start(robot, q0, features, target_spec["separation"], xi0)
-    target = TwoSphereTarget(top, target_spec["diameter"], target_spec["separation"], _motion(scenario))
+    target = TwoSphereTarget(
+        top, target_spec["diameter"], target_spec["separation"], _motion(scenario)
+    )
     _check_start_visible(scenario, robot, q0, target, features, xi0)
     rng = np.random.default_rng(scenario["simulation"]["seed"])
     sensor = CameraSensor(
@@ -223,9 +227,12 @@ def _objectives(
     if spec["obstacle_avoidance"]:
         objectives.append(
             ObstacleAvoidance(
-                spec["k_uobs"], spec["k_wobs"], spec["d0"], spec["impedance_mass"],
+                spec["k_uobs"],
+                spec["k_wobs"],
+                spec["d0"],
+                spec["impedance_mass"],
                 spec["impedance_damping"],
-            )  # fmt: skip
+            )
         )
     if spec["posture"]:
         objectives.append(ArmPosture(posture_target, spec["k_lambda"]))
@@ -308,7 +315,7 @@ def simulate(scenario: Scenario, progress: bool = False) -> RunLog:
     plant_dt = sim["plant_dt"]
     substeps = max(1, round(1.0 / (scenario["controller"]["rate"] * plant_dt)))
     control_dt = substeps * plant_dt
-    steps = int(round(scenario[""]["duration"] / control_dt))
+    steps = round(scenario[""]["duration"] / control_dt)
     log_every = max(1, round(1.0 / (sim["log_rate"] * control_dt)))
     laser_every = max(1, round(1.0 / (scenario["laser"]["rate"] * control_dt)))
     recorder = RunRecorder(setup, steps // log_every + 1)
@@ -350,7 +357,7 @@ def simulate(scenario: Scenario, progress: bool = False) -> RunLog:
     return recorder.finish(wallclock.perf_counter() - started)
 
 
-def _progress(steps: int, enabled: bool, name: str):  # noqa: ANN202 - tqdm or None
+def _progress(steps: int, enabled: bool, name: str):
     if not enabled:
         return None
     from tqdm import tqdm
@@ -374,7 +381,7 @@ def _control_step(
     laser: tuple[float, float],
     t: float,
     dt: float,
-):  # noqa: ANN202 - (ControlOutput, (J, J_o) or None)
+):
     """Kinematic controller on the newest measurement; zero command when the target is lost."""
     model = setup.model
     secondary_state = SecondaryInput(model.arm_positions(q), laser[0], laser[1], dt)

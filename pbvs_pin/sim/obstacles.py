@@ -115,9 +115,7 @@ class BoxObstacle(Obstacle):
         t2 = np.where(np.isnan(t2), np.inf, t2)
         enter = np.max(np.minimum(t1, t2), axis=1)
         leave = np.min(np.maximum(t1, t2), axis=1)
-        hit = (leave >= np.maximum(enter, 0.0)) & np.all(
-            (d != 0) | (np.abs(o) <= half), axis=1
-        )
+        hit = (leave >= np.maximum(enter, 0.0)) & np.all((d != 0) | (np.abs(o) <= half), axis=1)
         return np.where(hit, np.maximum(enter, 0.0), np.inf)
 
     def signed_distance(self, points: np.ndarray) -> np.ndarray:
@@ -179,7 +177,9 @@ def footprint_points(length: float, width: float, per_side: int = 12) -> np.ndar
     return np.vstack(edges)
 
 
-def clearance(obstacles: list[Obstacle], footprint: np.ndarray, x: float, y: float, yaw: float) -> float:
+def clearance(
+    obstacles: list[Obstacle], footprint: np.ndarray, x: float, y: float, yaw: float
+) -> float:
     """Smallest distance [m] between a placed footprint boundary and any obstacle (<0: contact).
 
     Args:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -152,7 +151,7 @@ class Scenario:
 
 def scenario_dir() -> Path:
     """Folder of the shipped scenarios."""
-    return Path(str(resources.files("pbvs_pin") / "scenarios"))
+    return Path(__file__).resolve().parents[1] / "scenarios"
 
 
 def shipped_scenarios() -> list[str]:
@@ -245,9 +244,7 @@ def _typed(source: str, field: str, value: Any, default: Any) -> Any:
     if default is None or isinstance(default, list):
         if default is None and value is None:
             return None
-        if not isinstance(value, list) or not all(
-            _number(x) or isinstance(x, list) for x in value
-        ):
+        if not isinstance(value, list) or not all(_number(x) or isinstance(x, list) for x in value):
             raise ScenarioError(source, field, f"expected a list of numbers, got {value!r}")
         return value
     if isinstance(default, bool):

@@ -18,6 +18,6 @@ See :mod:`pbvs_pin.viz.scene` for the conventions (paths, frames, units).
 """
 
 from . import scene
-from .scene import *  # noqa: F401,F403
+from .scene import *  # noqa: F403
 
 __all__ = list(scene.__all__)

@@ -19,8 +19,13 @@ Conventions
   Y-up; the viewer rotates its scene root by -pi/2 about X, so a world matrix
   read in the page (``object.matrixWorld``) equals
   ``MESHCAT_TO_THREEJS @ T_meshcat``.
-* Cameras follow the pinhole/OpenCV convention: +z forward (optical axis),
-  +x right, +y down; pixel ``(u, v)`` maps to ``((u-cx)/f, (v-cy)/f, 1)``.
+* Cameras follow the optical-frame convention of :mod:`pbvs_pin.camera`:
+  +z forward (optical axis), +x right, +y down.  The image helpers here take
+  *pixels* ``(col, row)`` from the top-left corner, which back-project to the
+  ray ``((col - cx) / f, (row - cy) / f, 1)``.  Image coordinates ``xi`` in
+  the paper's eq. (2) sign convention (``xi = -(f / z) [x, y]``) convert with
+  ``pbvs_pin.camera.CameraIntrinsics.to_pixel(xi)`` (``col = cx - u``,
+  ``row = cy - v``).
 * Colours are RGB triples in [0, 1] or 0xRRGGBB integers.
 
 Typical use::
@@ -40,7 +45,7 @@ import math
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Union
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -74,8 +79,8 @@ __all__ = [
     "write_replay_html",
 ]
 
-Color = Union[int, Sequence[float]]
-PoseSource = Union[Mapping[str, np.ndarray], Callable[[int, float], Mapping[str, np.ndarray]]]
+Color = int | Sequence[float]
+PoseSource = Mapping[str, np.ndarray] | Callable[[int, float], Mapping[str, np.ndarray]]
 
 #: Root of everything this package draws.
 ROOT_PREFIX = "pbvs"
@@ -118,7 +123,7 @@ def rgb_to_int(color: Color) -> int:
     if isinstance(color, (int, np.integer)):
         return int(color) & 0xFFFFFF
     rgb = np.clip(np.asarray(color, dtype=float)[:3], 0.0, 1.0)
-    r, g, b = (int(round(255 * c)) for c in rgb)
+    r, g, b = (round(float(255 * c)) for c in rgb)
     return (r << 16) | (g << 8) | b
 
 
@@ -234,6 +239,17 @@ def set_camera_view(vis: meshcat.Visualizer, position: Sequence[float]) -> None:
 # --------------------------------------------------------------------------
 # robot
 # --------------------------------------------------------------------------
+# pinocchio's MeshcatVisualizer.loadViewerGeometryObject() never raises: it
+# reports unconvertible geometries with warnings containing these phrases.
+_LOAD_FAILURE_KEYS = (
+    "not supported",
+    "supported only",
+    "Unsupported",
+    "Unknown mesh",
+    "Error while loading",
+)
+
+
 class RobotScene:
     """A robot's visual geometries in meshcat, posed from Pinocchio.
 
@@ -308,10 +324,7 @@ class RobotScene:
             problems = [
                 str(w.message)
                 for w in caught
-                if "not supported" in str(w.message)
-                or "Error while loading" in str(w.message)
-                or "Unsupported" in str(w.message)
-                or "Unknown mesh" in str(w.message)
+                if any(key in str(w.message) for key in _LOAD_FAILURE_KEYS)
             ]
             if problems:
                 self.failed.append(geom.name)
@@ -436,7 +449,7 @@ def add_target_spheres(
         raise ValueError(f"got {len(colors)} colours for {len(centers)} spheres")
     return [
         add_sphere(vis, f"{prefix}/sphere_{i}", diameter, c, position=p)
-        for i, (p, c) in enumerate(zip(centers, colors))
+        for i, (p, c) in enumerate(zip(centers, colors, strict=True))
     ]
 
 
@@ -572,7 +585,7 @@ def pixels_to_image_plane(
     ``Z = depth`` (camera frame: x right, y down, z forward).
 
     Args:
-        uv: Pixel coordinates, shape (N, 2), px.
+        uv: Pixels ``(col, row)`` from the top-left corner, shape (N, 2), px.
         focal_px: Focal length, px (same for u and v).
         width_px: Image width, px.
         height_px: Image height, px.
@@ -696,11 +709,11 @@ def add_image_plane(
         focal_px: Focal length, px.
         width_px: Image width, px.
         height_px: Image height, px.
-        desired_uv: Desired feature pixels, shape (N, 2), px.
-        current_uv: Initial current feature pixels, shape (M, 2), px;
+        desired_uv: Desired feature pixels ``(col, row)``, shape (N, 2), px.
+        current_uv: Initial current feature pixels ``(col, row)``, shape (M, 2), px;
             defaults to ``desired_uv``.
         depth: Distance of the plane in front of the camera, m.
-        point_diameter: Sphere diameter, m; default 1.5 % of the plane width.
+        point_diameter: Sphere diameter, m; default 2.5 % of the plane width.
         plane_color: Plane colour.
         plane_opacity: Plane opacity in [0, 1].
         desired_color: Colour of desired points.
@@ -719,7 +732,7 @@ def add_image_plane(
     plane_w = float(np.linalg.norm(c[1] - c[0]))
     plane_h = float(np.linalg.norm(c[3] - c[0]))
     if point_diameter is None:
-        point_diameter = 0.015 * plane_w
+        point_diameter = 0.025 * plane_w
     base = f"{camera_path}/image"
 
     plane_path = f"{base}/plane"
@@ -759,7 +772,7 @@ def feature_point_poses(
     """Poses of feature-point spheres for one frame (for animation).
 
     Args:
-        uv: Feature pixels, shape (N, 2), px.
+        uv: Feature pixels ``(col, row)``, shape (N, 2), px.
         focal_px: Focal length, px.
         width_px: Image width, px.
         height_px: Image height, px.
@@ -844,8 +857,9 @@ def write_replay_html(
         fps: Nominal frame rate of the clip; only changes the key numbering
             (frame = t * fps), not the timing.
         play: Start playing on load.  Must be True for the page's
-            ``viewer.animator.seek`` to work (actions are only bound when
-            played).
+            ``viewer.animator.seek`` to work: the three.js actions exist
+            either way, but only ``action.play()`` activates them in the
+            mixer, and seeking an inactive action moves nothing.
         repetitions: Number of plays before stopping.
 
     Returns:
@@ -866,7 +880,7 @@ def write_replay_html(
         has_scale = any(np.max(np.abs(np.array(s) - 1.0)) > 1e-9 for _, _, s in decomposed)
         prev_q = None
         node = anim.at_frame(vis, 0)[obj_path]
-        for t, (pos, quat, scale) in zip(times, decomposed):
+        for t, (pos, quat, scale) in zip(times, decomposed, strict=True):
             if prev_q is not None and float(np.dot(prev_q, quat)) < 0.0:
                 quat = -quat  # keep the quaternion track continuous
             prev_q = quat
