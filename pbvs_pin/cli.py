@@ -53,29 +53,31 @@ PAPER_CLAIMS = {
 """The paper's claim for each experiment (§5), for the report."""
 
 
-def run_scenario(name: str, out: Path, overrides: dict | None = None, progress: bool = True):
-    """Simulate one scenario, write its log, summary and figures into ``out``."""
+def run_scenario(name: str, out: Path, html: Path | None = None, progress: bool = True):
+    """Simulate one scenario; write its log, summary, figures (and HTML replay) into ``out``."""
     from pbvs_pin.sim.loop import simulate
     from pbvs_pin.sim.metrics import summarize
     from pbvs_pin.sim.scenario import load_scenario
     from pbvs_pin.viz.figures import plot_run
 
     scenario = load_scenario(name)
-    if overrides:
-        scenario = scenario.with_values(**overrides)
     log = simulate(scenario, progress=progress)
     out.mkdir(parents=True, exist_ok=True)
     log.save(out)
     summary = summarize(log)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     plot_run(log, out)
+    if html is not None:
+        from pbvs_pin.viz.replay import write_run_replay
+
+        write_run_replay(log, html)
     return log, summary
 
 
 def _run(args: argparse.Namespace) -> None:
     """Run one scenario."""
     out = Path(args.out)
-    _, summary = run_scenario(args.scenario, out)
+    _, summary = run_scenario(args.scenario, out, Path(args.html) if args.html else None)
     print(json.dumps(summary, indent=2))
     print(f"log, summary and figures written to {out}")
 
@@ -85,7 +87,7 @@ def _reproduce(args: argparse.Namespace) -> None:
     out = Path(args.out)
     rows = []
     for name in PAPER_CLAIMS:
-        _, summary = run_scenario(name, out / name)
+        _, summary = run_scenario(name, out / name, out / name / "replay.html")
         rows.append(summary)
         print(f"{name}: max |error| over the last 5 s = "
               f"{summary['max_abs_error_final_window_px']:.2f} px")  # fmt: skip
@@ -124,6 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
     run = commands.add_parser("run", help="simulate one scenario (shipped name or TOML path)")
     run.add_argument("scenario")
     run.add_argument("--out", default="results/run", help="output folder")
+    run.add_argument("--html", help="also write a standalone HTML replay to this file")
     run.set_defaults(handler=_run)
     reproduce = commands.add_parser("reproduce", help="run the paper's four experiments")
     reproduce.add_argument("--out", default="results", help="output folder")

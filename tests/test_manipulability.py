@@ -21,13 +21,6 @@ from pbvs_pin import (
 
 OPTIMISED_ROBOTS = ("pioneer_cyton", "pioneer_ur5", "pioneer_panda", "pioneer_kinova", "pioneer_xarm7")
 
-TIAGO_CLIP = (
-    "manipulability.py max_manipulability_posture clips every lower/upper limit to [-pi, pi] "
-    "before the margin, so TIAGo's arm_3_joint (limits [-3.534, 1.571] rad) cannot go below "
-    "-pi + 0.05 = -3.0916 rad: the result sits on that artificial bound and moving arm_3 by "
-    "-1e-3 rad (inside the joint limits and margin) raises manipulability by ~1e-5 relative "
-    "(up to ~2e-4 relative overall)"
-)
 
 
 def yoshikawa(robot, arm_angles) -> float:
@@ -81,7 +74,7 @@ def optimum(load):
 
 @pytest.mark.parametrize(
     "name",
-    [*OPTIMISED_ROBOTS, pytest.param("tiago", marks=pytest.mark.xfail(strict=True, reason=TIAGO_CLIP))],
+    [*OPTIMISED_ROBOTS, "tiago"],
 )
 def test_no_better_neighbour(load, optimum, name):
     robot = load(name)
