@@ -138,7 +138,7 @@ def _step_response(robot, loop, index, amplitude, duration=2.5, dt=2e-3):
     v_ref = np.zeros(robot.n)
     v_ref[index] = amplitude
     times, values = [0.0], [0.0]
-    for k in range(int(round(duration / dt))):
+    for k in range(round(duration / dt)):
         terms = loop.reference_model(robot, q, v)
         v = np.linalg.solve(
             terms.mass + dt * terms.coriolis, terms.mass @ v + dt * (v_ref - terms.gravity)
