@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import yourdfpy
+from lxml import etree
 
 from pbvs_pin import frames
 from pbvs_pin.base import DifferentialDrive
@@ -129,6 +130,10 @@ def load_urdf(source: str | Path) -> UrdfSource:
         RobotNotFound: If the name is neither a file nor a known robot.
     """
     path, package_dirs = _resolve(source)
+    try:  # yourdfpy silently recovers from broken XML: parse strictly first
+        etree.parse(str(path), etree.XMLParser(recover=False))
+    except etree.XMLSyntaxError as err:
+        raise UrdfError(str(path), f"not well-formed XML ({err})") from err
     try:
         urdf = yourdfpy.URDF.load(
             str(path),
