@@ -34,7 +34,7 @@ theta2/theta6 of the model identified by Martins et al., 2008)."""
 ARM_TIME_CONSTANT = 0.05
 """Default longest time constant [s] of an arm joint's velocity loop."""
 
-GRAVITY_SPEED_ERROR = 0.001
+GRAVITY_SPEED_ERROR = 1e-5
 """Default largest steady velocity error [rad/s or m/s] gravity may cause on an arm joint at
 home: servo loops are stiff enough that the arm does not sag visibly."""
 

@@ -188,7 +188,8 @@ class MobileManipulator:
                 carries the arm.
             mount: Pose of the arm's root link in the platform's root link, a ``pin.SE3`` or
                 ``(x, y, z, roll, pitch, yaw)`` [m, rad].
-            camera_link: Link (of the arm, by its own name) the camera is fixed to.
+            camera_link: Link (of the arm, by its own name) the camera is fixed to; an arm
+                that already has a ``camera_optical_frame`` can name it here.
             camera_pose: Pose of the optical frame (z forward, x right, y down) in
                 ``camera_link``.
             camera: Intrinsics; the paper's camera by default.
@@ -206,7 +207,14 @@ class MobileManipulator:
             arm_source = load_urdf(arm)
             arm_source.require_link(camera_link)
             camera_link = mount_arm(platform, arm_source, mount_pose)[camera_link]
-        add_fixed_frame(platform, camera_link, frames.CAMERA_OPTICAL, optical_pose)
+        if camera_link != frames.CAMERA_OPTICAL:
+            add_fixed_frame(platform, camera_link, frames.CAMERA_OPTICAL, optical_pose)
+        elif optical_pose != pin.SE3.Identity():
+            raise UrdfError(
+                platform.label,
+                f"camera_link is already the optical frame {frames.CAMERA_OPTICAL!r}: expected "
+                "an identity camera_pose",
+            )
         return cls._from_source(platform, frames.CAMERA_OPTICAL, base_kind, camera)
 
     @classmethod
@@ -305,7 +313,9 @@ class MobileManipulator:
         Returns:
             ``pin.integrate(q, S v dt)``. Shape (nq,).
         """
-        return pin.integrate(self.model, q, self.selection @ (np.asarray(v) * dt))
+        q = self.check_configuration(q)
+        v = self.check_velocity(v)
+        return pin.integrate(self.model, q, self.selection @ (v * dt))
 
     def arm_positions(self, q: npt.ArrayLike) -> np.ndarray:
         """Arm joint angles [rad] (or positions [m]) from a configuration. Shape (n_arm,).

@@ -2,7 +2,8 @@
 
 Robots are loaded once per session (TIAGo and the example-robot-data arms take about a second
 each). Helpers that the tests use as *independent references* (rotation matrices, the pinhole
-projection, URDF parsing) are written here from scratch, without the package under test.
+projection, URDF parsing, the closed-form kinematics of the reference robot) are written here
+from scratch, without the package under test.
 """
 
 from __future__ import annotations
@@ -113,12 +114,20 @@ def urdf_joints(path: Path) -> dict[str, dict]:
             "parent": element.find("parent").get("link"),
             "child": element.find("child").get("link"),
             "xyz": np.array(
-                [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
+                [
+                    float(v)
+                    for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()
+                ]
             ),
             "rpy": np.array(
-                [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
+                [
+                    float(v)
+                    for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()
+                ]
             ),
-            "axis": np.array([float(v) for v in axis.get("xyz").split()]) if axis is not None else None,
+            "axis": np.array([float(v) for v in axis.get("xyz").split()])
+            if axis is not None
+            else None,
             "velocity": float(limit.get("velocity")) if limit is not None else None,
         }
     return joints
@@ -143,7 +152,11 @@ def urdf_wheels(path: Path) -> list[tuple[np.ndarray, float, float]]:
             radii[link.get("name")] = float(cylinder.get("radius"))
     wheels = []
     for joint in urdf_joints(path).values():
-        if joint["type"] == "continuous" and joint["axis"] is not None and abs(joint["axis"][1]) == 1:
+        if (
+            joint["type"] == "continuous"
+            and joint["axis"] is not None
+            and abs(joint["axis"][1]) == 1
+        ):
             wheels.append((joint["xyz"], radii[joint["child"]], joint["velocity"]))
     return wheels
 

@@ -93,7 +93,9 @@ def _expected_camera_pose(robot, arm, link, q, mount, camera_pose) -> pin.SE3:
     """world_T_camera = world_T_footprint * footprint_T_base * mount * arm FK * camera_pose."""
     q_arm = pin.neutral(arm)
     for joint_id in _chain_joints(arm, link):
-        src = robot.model.joints[robot.model.getJointId(_robot_joint_name(robot, arm.names[joint_id]))]
+        src = robot.model.joints[
+            robot.model.getJointId(_robot_joint_name(robot, arm.names[joint_id]))
+        ]
         dst = arm.joints[joint_id]
         assert src.nq == dst.nq
         q_arm[dst.idx_q : dst.idx_q + dst.nq] = q[src.idx_q : src.idx_q + src.nq]
@@ -110,9 +112,7 @@ def test_assembled_dof_and_camera_pose(assembled, arm_model, name):
     link = CAMERA_LINKS[name]
     chain = _chain_joints(arm, link)
     assert robot.n == 2 + sum(arm.joints[j].nv for j in chain)
-    assert robot.arm_joint_names == tuple(
-        _robot_joint_name(robot, arm.names[j]) for j in chain
-    )
+    assert robot.arm_joint_names == tuple(_robot_joint_name(robot, arm.names[j]) for j in chain)
 
     mount, camera_pose = _se3(MOUNT), _se3(CAMERA_POSE)
     q0 = robot.neutral()
@@ -180,3 +180,20 @@ def test_reference_robot_chain(cyton):
     # Wheels are locked: they are not on the camera chain.
     assert not any("wheel" in name for name in cyton.model.names)
     np.testing.assert_array_equal(cyton.home_arm, np.zeros(3))
+
+
+def test_arm_with_its_own_optical_frame_matches_the_shipped_assembly():
+    mount = pin.SE3(np.eye(3), np.array([0.10, 0.0, 0.27]))
+    assembled = pbvs_pin.MobileManipulator.assemble(
+        base="pioneer3at", arm="cyton_alpha3", mount=mount, camera_link="camera_optical_frame"
+    )
+    shipped = pbvs_pin.load_robot("pioneer_cyton")
+    q = shipped.with_arm_positions(shipped.neutral(), [0.3, -0.4, 0.5])
+    expected = shipped.camera_pose(q)
+    got = assembled.camera_pose(q)
+    np.testing.assert_allclose(got.homogeneous, expected.homogeneous, atol=1e-12)
+    with pytest.raises(pbvs_pin.UrdfError, match="identity camera_pose"):
+        pbvs_pin.MobileManipulator.assemble(
+            base="pioneer3at", arm="cyton_alpha3", mount=mount,
+            camera_link="camera_optical_frame", camera_pose=(0, 0, 0.1, 0, 0, 0),
+        )  # fmt: skip

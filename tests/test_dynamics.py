@@ -54,7 +54,9 @@ def test_rnea_identities(load, name, seed):
 
     bias = s.T @ pin.rnea(model, data, q, s @ v, zero)
     np.testing.assert_allclose(terms.coriolis @ v + terms.gravity, bias, atol=1e-9)
-    np.testing.assert_allclose(terms.gravity, s.T @ pin.rnea(model, data, q, zero, zero), atol=1e-10)
+    np.testing.assert_allclose(
+        terms.gravity, s.T @ pin.rnea(model, data, q, zero, zero), atol=1e-10
+    )
     np.testing.assert_allclose(
         terms.gravity, s.T @ pin.computeGeneralizedGravity(model, data, q), atol=1e-10
     )

@@ -114,9 +114,7 @@ def test_cyton_feature_jacobian_closed_form(cyton, closed_form, seed):
     assert xi.shape == (3,) and jac.shape == (3, 5) and jac_o.shape == (3, 3)
     np.testing.assert_allclose(xi, expected_xi, rtol=1e-11, atol=1e-9)
     np.testing.assert_allclose(jac, expected_j, rtol=1e-9, atol=1e-9 * np.abs(expected_j).max())
-    np.testing.assert_allclose(
-        jac_o, expected_jo, rtol=1e-9, atol=1e-9 * np.abs(expected_jo).max()
-    )
+    np.testing.assert_allclose(jac_o, expected_jo, rtol=1e-9, atol=1e-9 * np.abs(expected_jo).max())
 
 
 # ================================================================ finite differences, all robots

@@ -19,8 +19,13 @@ from pbvs_pin import (
     whole_body_manipulability,
 )
 
-OPTIMISED_ROBOTS = ("pioneer_cyton", "pioneer_ur5", "pioneer_panda", "pioneer_kinova", "pioneer_xarm7")
-
+OPTIMISED_ROBOTS = (
+    "pioneer_cyton",
+    "pioneer_ur5",
+    "pioneer_panda",
+    "pioneer_kinova",
+    "pioneer_xarm7",
+)
 
 
 def yoshikawa(robot, arm_angles) -> float:
@@ -39,7 +44,9 @@ def yoshikawa(robot, arm_angles) -> float:
     full = pin.computeFrameJacobian(
         robot.model, data, q, robot.model.getFrameId(robot.camera_frame), pin.LOCAL_WORLD_ALIGNED
     )
-    arm_columns = [robot.model.joints[robot.model.getJointId(n)].idx_v for n in robot.arm_joint_names]
+    arm_columns = [
+        robot.model.joints[robot.model.getJointId(n)].idx_v for n in robot.arm_joint_names
+    ]
     jac = full[:, arm_columns]
     if len(arm_columns) <= 3:
         jac = jac[:3]
@@ -132,7 +139,9 @@ def test_reference_robot_optimum_against_grid_search(cyton, optimum, closed_form
 
 
 def test_optimum_is_reproducible(cyton, optimum):
-    np.testing.assert_array_equal(max_manipulability_posture(cyton, seed=0), optimum("pioneer_cyton"))
+    np.testing.assert_array_equal(
+        max_manipulability_posture(cyton, seed=0), optimum("pioneer_cyton")
+    )
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -153,7 +162,9 @@ def test_manipulability_does_not_depend_on_base_pose(cyton):
     moved = q.copy()
     theta = rng.uniform(-np.pi, np.pi)
     moved[:4] = [*rng.uniform(-3, 3, 2), np.cos(theta), np.sin(theta)]
-    assert arm_manipulability(cyton, moved) == pytest.approx(arm_manipulability(cyton, q), rel=1e-10)
+    assert arm_manipulability(cyton, moved) == pytest.approx(
+        arm_manipulability(cyton, q), rel=1e-10
+    )
     assert whole_body_manipulability(cyton, moved) == pytest.approx(
         whole_body_manipulability(cyton, q), rel=1e-10
     )
