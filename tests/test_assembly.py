@@ -13,6 +13,7 @@ import pinocchio as pin
 import pytest
 from conftest import URDF_DIR, planar_pose, random_configuration, rpy_matrix, urdf_wheels
 
+import pbvs_pin
 from pbvs_pin import MobileManipulator
 
 CAMERA_LINKS = {
