@@ -44,73 +44,53 @@ def _info(args: argparse.Namespace) -> None:
     print(f"whole-body manipulability at home: {whole_body_manipulability(robot, q):.5g}")
 
 
-PAPER_CLAIMS = {
-    "experiment1": "errors ultimately bounded, final max |error| < 8 px",
-    "experiment2": "errors bounded while avoiding the obstacle; arm returns to max manipulability",
-    "experiment3": "errors bounded with a 20% kinematic model error (degraded but acceptable)",
-    "experiment4": "errors converge to zero (perfect knowledge)",
-}
-"""The paper's claim for each experiment (§5), for the report."""
-
-
-def run_scenario(name: str, out: Path, html: Path | None = None, progress: bool = True):
-    """Simulate one scenario; write its log, summary, figures (and HTML replay) into ``out``."""
-    from pbvs_pin.sim.loop import simulate
-    from pbvs_pin.sim.metrics import summarize
-    from pbvs_pin.sim.scenario import load_scenario
-    from pbvs_pin.viz.figures import plot_run
-
-    scenario = load_scenario(name)
-    log = simulate(scenario, progress=progress)
-    out.mkdir(parents=True, exist_ok=True)
-    log.save(out)
-    summary = summarize(log)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    plot_run(log, out)
-    if html is not None:
-        from pbvs_pin.viz.replay import write_run_replay
-
-        write_run_replay(log, html)
-    return log, summary
-
-
 def _run(args: argparse.Namespace) -> None:
-    """Run one scenario."""
+    """Run one scenario, optionally with a live Meshcat view."""
+    from pbvs_pin.experiments import run_scenario
+
     out = Path(args.out)
-    _, summary = run_scenario(args.scenario, out, Path(args.html) if args.html else None)
+    html = Path(args.html) if args.html else None
+    if args.meshcat:
+        from pbvs_pin.viz.live import LiveView
+
+        with LiveView(args.scenario) as live:
+            print(f"live view: {live.url}")
+            summary = run_scenario(args.scenario, out, html, observer=live.show)[1]
+    else:
+        summary = run_scenario(args.scenario, out, html)[1]
     print(json.dumps(summary, indent=2))
     print(f"log, summary and figures written to {out}")
 
 
 def _reproduce(args: argparse.Namespace) -> None:
     """Run the paper's four experiments and write the report."""
-    out = Path(args.out)
-    rows = []
-    for name in PAPER_CLAIMS:
-        _, summary = run_scenario(name, out / name, out / name / "replay.html")
-        rows.append(summary)
-        print(f"{name}: max |error| over the last 5 s = "
-              f"{summary['max_abs_error_final_window_px']:.2f} px")  # fmt: skip
-    lines = [
-        "# pbvs_pin: the paper's experiments reproduced in simulation",
-        "",
-        "| experiment | paper's claim | max abs error, last 5 s [px] | max abs error after 2 s "
-        "[px] | min clearance [m] | arm to theta_d, last 5 s [rad] |",
-        "|---|---|---|---|---|---|",
-    ]
-    for summary in rows:
-        name = summary["scenario"]
-        clearance = summary["min_clearance_m"]
-        lines.append(
-            f"| {name} | {PAPER_CLAIMS[name]} | {summary['max_abs_error_final_window_px']:.2f} | "
-            f"{summary['max_abs_error_after_transient_px']:.1f} | "
-            f"{'-' if clearance is None else f'{clearance:.3f}'} | "
-            f"{summary['posture_error_final_window_rad']:.3f} |"
-        )
-    lines += ["", "Figures of each experiment are in its folder: " + ", ".join(
-        f"[{name}]({name}/feature_errors.png)" for name in PAPER_CLAIMS)]  # fmt: skip
-    (out / "report.md").write_text("\n".join(lines) + "\n")
-    print(f"report written to {out / 'report.md'}")
+    from pbvs_pin.experiments import reproduce
+
+    report = reproduce(Path(args.out))
+    print(f"report written to {report}")
+
+
+def _view(args: argparse.Namespace) -> None:
+    """Show a robot at home with its camera frame and frustum."""
+    from pbvs_pin.viz.live import view_robot
+
+    view_robot(args.robot, Path(args.html) if args.html else None)
+
+
+def _analyze(args: argparse.Namespace) -> None:
+    """Passivity and L2-gain figures of a run."""
+    from pbvs_pin.analysis import analyze_run
+
+    result = analyze_run(Path(args.log), args.epsilon, Path(args.out) if args.out else None)
+    print(json.dumps(result, indent=2))
+
+
+def _sweep(args: argparse.Namespace) -> None:
+    """Run a grid or random sample of scenarios."""
+    from pbvs_pin.sweep import run_sweep
+
+    table = run_sweep(Path(args.spec), Path(args.out), args.scheduler, args.workers)
+    print(f"results table written to {table}")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -127,10 +107,26 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("scenario")
     run.add_argument("--out", default="results/run", help="output folder")
     run.add_argument("--html", help="also write a standalone HTML replay to this file")
+    run.add_argument("--meshcat", action="store_true", help="open a live Meshcat view")
     run.set_defaults(handler=_run)
     reproduce = commands.add_parser("reproduce", help="run the paper's four experiments")
     reproduce.add_argument("--out", default="results", help="output folder")
     reproduce.set_defaults(handler=_reproduce)
+    view = commands.add_parser("view", help="show a robot, its camera frame and frustum")
+    view.add_argument("robot", help="shipped robot name or URDF path")
+    view.add_argument("--html", help="write a standalone HTML file instead of serving")
+    view.set_defaults(handler=_view)
+    analyze = commands.add_parser("analyze", help="passivity and L2-gain analysis of a run")
+    analyze.add_argument("log", help="a run's log.npz (or its folder)")
+    analyze.add_argument("--epsilon", type=float, default=0.5, help="epsilon of eq. (31)")
+    analyze.add_argument("--out", help="folder for the analysis report and plots")
+    analyze.set_defaults(handler=_analyze)
+    sweep = commands.add_parser("sweep", help="run a grid or random sample of scenarios")
+    sweep.add_argument("spec", help="sweep specification (TOML)")
+    sweep.add_argument("--out", default="results/sweep", help="output folder")
+    sweep.add_argument("--scheduler", help="Dask scheduler address (default: local processes)")
+    sweep.add_argument("--workers", type=int, help="local worker processes")
+    sweep.set_defaults(handler=_sweep)
     return parser
 
 

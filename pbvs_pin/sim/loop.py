@@ -9,6 +9,7 @@ plant (eq. 1 with the *true* model), integrated at its own step.
 from __future__ import annotations
 
 import time as wallclock
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -300,12 +301,39 @@ class Perception:
         return self.filter.velocity
 
 
-def simulate(scenario: Scenario, progress: bool = False) -> RunLog:
+@dataclass(frozen=True)
+class Snapshot:
+    """What a live viewer needs at one logged instant.
+
+    Attributes:
+        t: Time [s].
+        q: True configuration. Shape (nq,).
+        centres: True sphere centres [m]. Shape (2, 3).
+        xi: Measured features [px] (NaN when the target is not seen). Shape (r,).
+        xi_d: Desired features [px]. Shape (r,).
+        points: Measured image points ``[u, v]`` of both spheres [px] (NaN when unseen).
+            Shape (2, 2).
+    """
+
+    t: float
+    q: np.ndarray
+    centres: np.ndarray
+    xi: np.ndarray
+    xi_d: np.ndarray
+    points: np.ndarray
+
+
+def simulate(
+    scenario: Scenario,
+    progress: bool = False,
+    observer: Callable[[Snapshot], None] | None = None,
+) -> RunLog:
     """Run one scenario and return its log.
 
     Args:
         scenario: A validated scenario.
         progress: Show a progress bar (tqdm) on stderr.
+        observer: Called with a :class:`Snapshot` at every logged instant (a live view).
 
     Returns:
         The run's log (arrays at the log rate) with its setup's key facts.
@@ -343,11 +371,18 @@ def simulate(scenario: Scenario, progress: bool = False) -> RunLog:
         v_ref = np.clip(v_ref, -setup.robot.velocity_limits, setup.robot.velocity_limits)
         if step % log_every == 0:
             recorder.record(
-                t=t, output=output, jacobians=jacobians, perception=perception, v_ref=v_ref,
-                v2=v2, laser=laser_reading,
+                t=t,
+                output=output,
+                jacobians=jacobians,
+                perception=perception,
+                v_ref=v_ref,
+                v2=v2,
+                laser=laser_reading,
                 clearance=clearance(setup.obstacles, footprint, *base.translation[:2], yaw),
                 manipulability=arm_manipulability(setup.model, plant.q),
-            )  # fmt: skip
+            )
+            if observer is not None:
+                observer(_snapshot(setup, perception, t))  # fmt: skip
         for _ in range(substeps):
             plant.step(v_ref)
         if bar is not None:
@@ -355,6 +390,14 @@ def simulate(scenario: Scenario, progress: bool = False) -> RunLog:
     if bar is not None:
         bar.close()
     return recorder.finish(wallclock.perf_counter() - started)
+
+
+def _snapshot(setup: Setup, perception: Perception, t: float) -> Snapshot:
+    """The instant's true state and what the camera saw."""
+    seen = perception.measurement is not None and not perception.lost
+    points = perception.measurement.points if seen else np.full((2, 2), np.nan)
+    xi = setup.features.features(perception.measurement) if seen else np.full(3, np.nan)
+    return Snapshot(t, setup.plant.q.copy(), setup.target.centres(t), xi, setup.xi_d, points)
 
 
 def _progress(steps: int, enabled: bool, name: str):
