@@ -192,8 +192,8 @@ def _controller(scenario: Scenario, model: MobileManipulator) -> PassivityContro
         "controller",
         lambda: ServoGains(
             k=tuple(_vector(scenario, "controller.k", spec["k"], 3)),
-            k1=tuple(_vector(scenario, "controller.k1", _default_k1(spec["k1"], model), n)),
-            k2=tuple(_vector(scenario, "controller.k2", spec["k2"], n)),
+            k1=tuple(_vector(scenario, "controller.k1", _per_dof(spec["k1"], model), n)),
+            k2=tuple(_vector(scenario, "controller.k2", _per_dof(spec["k2"], model), n)),
             feature_scale=spec["feature_scale"],
             weights=_weights(scenario, spec["weights"], n),
             use_pseudoinverse_feedback=spec["feedback"] == "pseudoinverse",
@@ -204,11 +204,14 @@ def _controller(scenario: Scenario, model: MobileManipulator) -> PassivityContro
     return PassivityController(gains, model.velocity_limits)
 
 
-def _default_k1(k1: list, model: MobileManipulator) -> list:
-    """The paper's k1 names 5 values (2 base + 3 arm); other robots repeat the arm value."""
-    if len(k1) == 5 and model.n != 5:
-        return [*k1[: model.n_base], *([k1[-1]] * model.n_arm)][: model.n]
-    return k1
+def _per_dof(values: list, model: MobileManipulator) -> list:
+    """Gains written for the paper's robot (2 base + 3 arm values) fit any robot.
+
+    The base values are kept and the last arm value is repeated for every arm joint.
+    """
+    if len(values) == 5 and model.n != 5 and model.n_base == 2:
+        return [*values[:2], *([values[-1]] * model.n_arm)]
+    return values
 
 
 def _weights(scenario: Scenario, weights: list, n: int) -> tuple:
