@@ -14,6 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pbvs_pin.exceptions import GainError, PointBehindCamera
+from pbvs_pin.kernels import point_jacobians
 from pbvs_pin.validation import as_array
 
 MIN_DEPTH = 1e-3
@@ -143,7 +144,8 @@ def point_interaction_matrix(focal_px: float, xi: npt.ArrayLike, depth: float) -
               \begin{bmatrix} v_c \\ \omega_c \end{bmatrix}
 
     where ``[v_c; w_c]`` is the camera's twist expressed in the camera frame (Pinocchio's
-    ``LOCAL`` convention) and the point is fixed in the world.
+    ``LOCAL`` convention) and the point is fixed in the world. Computed by
+    :func:`pbvs_pin.kernels.point_jacobians`.
 
     Args:
         focal_px: Focal length f [px].
@@ -153,12 +155,5 @@ def point_interaction_matrix(focal_px: float, xi: npt.ArrayLike, depth: float) -
     Returns:
         Shape (2, 6) [px/m, px/rad].
     """
-    u, v = np.asarray(xi, dtype=float)
-    xn, yn, z = -u / focal_px, -v / focal_px, depth
-    normalised = np.array(
-        [
-            [-1.0 / z, 0.0, xn / z, xn * yn, -(1.0 + xn * xn), yn],
-            [0.0, -1.0 / z, yn / z, 1.0 + yn * yn, -xn * yn, -xn],
-        ]
-    )
-    return -focal_px * normalised
+    points = np.asarray(xi, dtype=float).reshape(1, 2)
+    return point_jacobians(points, np.array([float(depth)]), float(focal_px))[0]

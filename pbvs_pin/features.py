@@ -19,8 +19,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from pbvs_pin.camera import CameraIntrinsics, point_interaction_matrix
+from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.exceptions import GainError, PointBehindCamera, ShapeError
+from pbvs_pin.kernels import feature_jacobians, point_jacobians
 from pbvs_pin.validation import as_array
 
 if TYPE_CHECKING:
@@ -50,7 +51,7 @@ class FeatureSet(abc.ABC):
 
     @property
     @abc.abstractmethod
-    def rows(self) -> np.ndarray:
+    def rows(self) -> np.ndarray:  # indices, dtype int64
         """Indices into the stacked ``[u1, v1, u2, v2, ...]`` that form ``xi``. Shape (r,)."""
 
     @property
@@ -74,12 +75,7 @@ class FeatureSet(abc.ABC):
         Returns:
             Shape (r, 6) [px/m, px/rad].
         """
-        stacked = np.vstack(
-            [
-                point_interaction_matrix(camera.focal_px, point, depth)
-                for point, depth in zip(measurement.points, measurement.depths, strict=True)
-            ]
-        )
+        stacked = point_jacobians(measurement.points, measurement.depths, camera.focal_px)[0]
         return stacked[self.rows]
 
     def object_jacobian(
@@ -94,7 +90,7 @@ class FeatureSet(abc.ABC):
 
         .. math:: J_o = \frac{\partial \xi}{\partial p_c}\, {}^c R_w,\qquad
                   \frac{\partial \xi_i}{\partial p_c} =
-                  \begin{bmatrix} -f/z_i & 0 & -u_i/z_i \ 0 & -f/z_i & -v_i/z_i \end{bmatrix}
+                  \begin{bmatrix} -f/z_i & 0 & -u_i/z_i \\ 0 & -f/z_i & -v_i/z_i \end{bmatrix}
 
         Args:
             camera: Intrinsics.
@@ -105,12 +101,36 @@ class FeatureSet(abc.ABC):
         Returns:
             Shape (r, 3) [px/m].
         """
-        f = camera.focal_px
-        blocks = [
-            np.array([[-f / z, 0.0, -u / z], [0.0, -f / z, -v / z]])
-            for (u, v), z in zip(measurement.points, measurement.depths, strict=True)
-        ]
-        return (np.vstack(blocks) @ rotation_world_to_camera)[self.rows]
+        stacked = point_jacobians(measurement.points, measurement.depths, camera.focal_px)[1]
+        return (stacked @ rotation_world_to_camera)[self.rows]
+
+    def jacobians_from_measurement(
+        self,
+        camera: CameraIntrinsics,
+        measurement: ImageMeasurement,
+        camera_jacobian: np.ndarray,
+        rotation_world_to_camera: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(xi, J, J_o)`` of eq. (3) from what the camera measured.
+
+        Args:
+            camera: Intrinsics.
+            measurement: Image points and depths.
+            camera_jacobian: ``J_cam S`` (LOCAL camera twist per actuated velocity).
+                Shape (6, n).
+            rotation_world_to_camera: ``cRw``. Shape (3, 3).
+
+        Returns:
+            ``xi`` [px] shape (r,), ``J`` shape (r, n), ``J_o`` shape (r, 3).
+        """
+        return feature_jacobians(
+            measurement.points,
+            measurement.depths,
+            self.rows,
+            camera.focal_px,
+            camera_jacobian,
+            np.ascontiguousarray(rotation_world_to_camera),
+        )
 
     def measure(
         self, robot: MobileManipulator, q: npt.ArrayLike, points_world: npt.ArrayLike
@@ -168,9 +188,9 @@ class FeatureSet(abc.ABC):
             raise ShapeError("points_world", (self.n_points, 3), (len(points_world), 3))
         measurement = self.measure(robot, q, np.array(points_world, dtype=float))
         pose = robot.camera_pose(q)
-        total = self.interaction_matrix(robot.camera, measurement) @ robot.camera_jacobian(q)
-        objects = self.object_jacobian(robot.camera, measurement, pose.rotation.T)
-        return self.features(measurement), total, objects
+        return self.jacobians_from_measurement(
+            robot.camera, measurement, robot.camera_jacobian(q), pose.rotation.T
+        )
 
 
 @dataclass(frozen=True)

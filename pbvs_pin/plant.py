@@ -19,9 +19,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
 
-from pbvs_pin.dynamics import rigid_body_terms
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.kernels import velocity_loop_step
 
 if TYPE_CHECKING:
     from pbvs_pin.dynamics import VelocityLoop
@@ -46,15 +47,19 @@ class Plant:
         self.robot, self.loop, self.dt = robot, loop, dt
         self.q = robot.check_configuration(q).copy()
         self.v = np.zeros(robot.n)
-        self._stiffness = np.diag(loop.gains + loop.damping)
 
     def step(self, v_ref: np.ndarray) -> None:
-        """Advance by one step ``dt`` under the velocity reference ``v_ref`` (shape (n,))."""
-        h = self.dt
-        terms = rigid_body_terms(self.robot, self.q, self.v)
-        lhs = terms.mass + h * self._stiffness
-        rhs = terms.mass @ self.v + h * (
-            self.loop.gains * v_ref - terms.coriolis @ self.v - terms.gravity
-        )
-        self.v = np.linalg.solve(lhs, rhs)
-        self.q = self.robot.integrate(self.q, self.v, h)
+        """Advance by one step ``dt`` under the velocity reference ``v_ref`` (shape (n,)).
+
+        Pinocchio gives the rigid-body terms; :func:`pbvs_pin.kernels.velocity_loop_step`
+        solves the semi-implicit step; ``pin.integrate`` moves ``q`` on its manifold.
+        """
+        model, data, selection = self.robot.model, self.robot.data, self.robot.selection
+        mass = pin.crba(model, data, self.q)
+        coriolis = pin.computeCoriolisMatrix(model, data, self.q, selection @ self.v)
+        gravity = pin.computeGeneralizedGravity(model, data, self.q)
+        self.v = velocity_loop_step(
+            mass, coriolis, gravity, selection, self.loop.gains, self.loop.damping,
+            self.v, v_ref, self.dt,
+        )  # fmt: skip
+        self.q = pin.integrate(model, self.q, selection @ (self.v * self.dt))

@@ -129,6 +129,8 @@ class MobileManipulator:
                 source, f"no movable joint between the base and camera frame {camera_frame!r}"
             )
         self.arm_joint_names = tuple(self.model.names[j] for j in arm_joints)
+        self._arm_idx_q = np.array([self.model.joints[j].idx_q for j in arm_joints])
+        self._arm_continuous = np.array([self.model.joints[j].nq == 2 for j in arm_joints])
         n_arm = self.model.nv - n_root
         self.selection = np.zeros((self.model.nv, base.selection().shape[1] + n_arm))
         self.selection[:n_root, : base.selection().shape[1]] = base.selection()
@@ -323,12 +325,10 @@ class MobileManipulator:
         Continuous joints (stored as cos/sin) give their angle.
         """
         q = np.asarray(q, dtype=float)
-        angles = []
-        for name in self.arm_joint_names:
-            joint = self.model.joints[self.model.getJointId(name)]
-            values = q[joint.idx_q : joint.idx_q + joint.nq]
-            angles.append(np.arctan2(values[1], values[0]) if joint.nq == 2 else values[0])
-        return np.array(angles)
+        angles = q[self._arm_idx_q]
+        continuous = self._arm_continuous
+        angles[continuous] = np.arctan2(q[self._arm_idx_q[continuous] + 1], angles[continuous])
+        return angles
 
     def with_arm_positions(self, q: npt.ArrayLike, arm: npt.ArrayLike) -> np.ndarray:
         """Copy of ``q`` with the arm joints set to ``arm`` [rad or m]. Shape (nq,)."""
@@ -384,9 +384,16 @@ class MobileManipulator:
         Returns:
             Shape (6, n): rows ``[v; w]`` [m/s, rad/s] of the camera in its own frame.
         """
-        jacobian = pin.computeFrameJacobian(
-            self.model, self.data, self.check_configuration(q), self.camera_frame_id, pin.LOCAL
-        )
+        return self.camera_jacobian_unchecked(self.check_configuration(q))
+
+    def camera_jacobian_unchecked(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`camera_jacobian` for a ``q`` known to be valid (the control loop's hot path).
+
+        Also leaves the camera placement ``world_T_camera`` in ``self.data.oMf``.
+        """
+        pin.computeJointJacobians(self.model, self.data, q)
+        pin.updateFramePlacement(self.model, self.data, self.camera_frame_id)
+        jacobian = pin.getFrameJacobian(self.model, self.data, self.camera_frame_id, pin.LOCAL)
         return jacobian @ self.selection
 
     def base_pose(self, q: npt.ArrayLike) -> pin.SE3:

@@ -3,7 +3,8 @@ r"""Dynamic compensation, eq. (20).
 .. math:: v_{ref} = M(q)\left(\dot u - K_D (v - u)\right) + C(q, v)\, v + g(q)
 
 with ``M``, ``C``, ``g`` the velocity-reference model of eq. (1) built from the controller's
-own Pinocchio model (:meth:`pbvs_pin.dynamics.VelocityLoop.reference_model`). With an exact
+own Pinocchio model (the matrices of :meth:`pbvs_pin.dynamics.VelocityLoop.reference_model`,
+applied in the compiled :func:`pbvs_pin.kernels.compensation_law`). With an exact
 model it gives ``d/dt (v - u) = -K_D (v - u)``, eq. (21). The paper compensates the platform
 only; here the rows compensated are a setting.
 
@@ -19,8 +20,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
 
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.kernels import compensation_law
 
 if TYPE_CHECKING:
     from pbvs_pin.dynamics import VelocityLoop
@@ -70,6 +73,8 @@ class DynamicCompensator:
             Compensation.PLATFORM: np.arange(robot.n) < robot.n_base,
             Compensation.ALL: np.ones(robot.n, dtype=bool),
         }[mode]
+        self.any_row = bool(self.rows.any())
+        self.gain_inverse = 1.0 / loop.gains
         self.previous_u: np.ndarray | None = None
         self.u_dot = np.zeros(robot.n)
 
@@ -83,6 +88,9 @@ class DynamicCompensator:
     ) -> tuple[np.ndarray, float]:
         """Velocity reference for the robot's low-level loops.
 
+        Pinocchio gives the rigid-body terms; :func:`~pbvs_pin.kernels.compensation_law`
+        applies eq. (20) on the model of eq. (1).
+
         Args:
             q: Configuration. Shape (nq,).
             v: Measured actuated velocity. Shape (n,).
@@ -93,14 +101,17 @@ class DynamicCompensator:
             ``v_ref`` (shape (n,)), and ``V2 = |v - u|^2 / 2`` of eq. (22).
         """
         if self.previous_u is not None and dt > 0:
-            raw = (u - self.previous_u) / dt
             blend = dt / (self.tau + dt)
-            self.u_dot = self.u_dot + blend * (raw - self.u_dot)
+            self.u_dot = self.u_dot + blend * ((u - self.previous_u) / dt - self.u_dot)
         self.previous_u = u.copy()
-        error = v - u
-        storage = 0.5 * float(error @ error)
-        if not self.rows.any():
-            return u.copy(), storage
-        terms = self.loop.reference_model(self.robot, q, v)
-        full = terms.mass @ (self.u_dot - self.k_d * error) + terms.coriolis @ v + terms.gravity
-        return np.where(self.rows, full, u), storage
+        if not self.any_row:
+            error = v - u
+            return u.copy(), 0.5 * float(error @ error)
+        model, data, selection = self.robot.model, self.robot.data, self.robot.selection
+        mass = pin.crba(model, data, q)
+        coriolis = pin.computeCoriolisMatrix(model, data, q, selection @ v)
+        gravity = pin.computeGeneralizedGravity(model, data, q)
+        return compensation_law(
+            mass, coriolis, gravity, selection, self.gain_inverse, self.loop.damping,
+            self.rows, self.k_d, v, u, self.u_dot,
+        )  # fmt: skip

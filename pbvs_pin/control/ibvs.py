@@ -11,8 +11,9 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from pbvs_pin.control.kinematic import ControlOutput, PassivityController, ServoGains, saturate
+from pbvs_pin.control.kinematic import ControlOutput, PassivityController, ServoGains
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.kernels import saturate
 
 
 class ClassicIbvs(PassivityController):
@@ -43,6 +44,9 @@ class ClassicIbvs(PassivityController):
         """The classic law; ``secondary`` is ignored. Same diagnostics as the passivity law."""
         error_px = np.asarray(error_px, dtype=float)
         jacobian_px = np.asarray(jacobian_px, dtype=float)
+        object_jacobian_px = np.asarray(object_jacobian_px, dtype=float)
+        target_velocity = np.asarray(target_velocity, dtype=float)
+        secondary = np.asarray(secondary, dtype=float)
         r = error_px.shape[0]
         self._check_shapes(r, jacobian_px, object_jacobian_px, target_velocity, secondary)
         inputs = (error_px, jacobian_px, object_jacobian_px, target_velocity)

@@ -23,6 +23,20 @@ import numpy as np
 import numpy.typing as npt
 
 from pbvs_pin.exceptions import GainError, ShapeError
+from pbvs_pin.kernels import (
+    damped_pseudo_inverse,
+    passivity_law,
+    saturate,
+    storage_function,
+)
+
+__all__ = [
+    "ControlOutput",
+    "PassivityController",
+    "ServoGains",
+    "saturate",
+    "storage_function",
+]
 
 
 def _positive_vector(name: str, value: npt.ArrayLike) -> np.ndarray:
@@ -136,28 +150,6 @@ class ControlOutput:
     valid: bool = True
 
 
-def storage_function(error_units: np.ndarray, k: np.ndarray) -> float:
-    r"""``V1`` of eq. (7) in closed form.
-
-    .. math:: V_1 = \int_0^{\tilde\xi} \eta^T K_c(\eta)\, d\eta
-              = \sum_i k_i \left(|\tilde\xi_i| - \ln(1 + |\tilde\xi_i|)\right)
-
-    Args:
-        error_units: Feature error in controller units. Shape (r,).
-        k: ``k_i``. Shape (r,).
-    """
-    magnitude = np.abs(error_units)
-    return float(np.sum(k * (magnitude - np.log1p(magnitude))))
-
-
-def saturate(u: np.ndarray, limits: np.ndarray) -> tuple[np.ndarray, float]:
-    """Scale ``u`` uniformly so that ``|u_i| <= limits_i``; return it and the factor."""
-    ratio = np.max(np.abs(u) / limits)
-    if ratio <= 1.0:
-        return u, 1.0
-    return u / ratio, 1.0 / ratio
-
-
 class PassivityController:
     """Eq. (10)/(34) for one robot and one feature set.
 
@@ -174,13 +166,13 @@ class PassivityController:
         self.k1 = gains.expand("k1", n)
         self.k2 = gains.expand("k2", n)
         self.weight_inverse = gains.weight_inverse(n)
+        self.damping = np.array([gains.damping_threshold, gains.max_damping])
+        self._k: np.ndarray | None = None
 
     def pseudo_inverse(self, jacobian: np.ndarray) -> tuple[np.ndarray, float, bool]:
-        r"""Weighted right pseudo-inverse, damped near singularities.
+        """Weighted right pseudo-inverse ``J#``, damped near singularities.
 
-        .. math:: J^\# = W^{-1} J^T (J W^{-1} J^T + \mu^2 I)^{-1},\quad
-                  \mu^2 = \mu_{max}^2 \left(1 - (\sigma_{min}/\sigma_0)^2\right)
-                  \text{ if } \sigma_{min} < \sigma_0 \text{ else } 0
+        See :func:`pbvs_pin.kernels.damped_pseudo_inverse`.
 
         Args:
             jacobian: ``J`` in controller units. Shape (r, n).
@@ -188,15 +180,9 @@ class PassivityController:
         Returns:
             ``J#`` (shape (n, r)), ``sigma_min`` of ``J W^-1/2``, whether it was damped.
         """
-        right = self.weight_inverse @ jacobian.T
-        gram = jacobian @ right
-        sigma_min = float(np.sqrt(max(np.linalg.eigvalsh(gram)[0], 0.0)))
-        threshold = self.gains.damping_threshold
-        damped = sigma_min < threshold
-        if damped:
-            mu2 = self.gains.max_damping**2 * (1.0 - (sigma_min / threshold) ** 2)
-            gram = gram + mu2 * np.eye(gram.shape[0])
-        return np.linalg.solve(gram, right.T).T, sigma_min, damped
+        return damped_pseudo_inverse(
+            np.ascontiguousarray(jacobian, dtype=float), self.weight_inverse, *self.damping
+        )
 
     def step(
         self,
@@ -206,7 +192,7 @@ class PassivityController:
         target_velocity: npt.ArrayLike,
         secondary: npt.ArrayLike,
     ) -> ControlOutput:
-        """Compute the command ``u`` of eq. (34).
+        """Compute the command ``u`` of eq. (34) (:func:`~pbvs_pin.kernels.passivity_law`).
 
         Args:
             error_px: ``xi - xi_d`` [px]. Shape (r,).
@@ -224,30 +210,32 @@ class PassivityController:
         """
         error_px = np.asarray(error_px, dtype=float)
         jacobian_px = np.asarray(jacobian_px, dtype=float)
+        object_jacobian_px = np.asarray(object_jacobian_px, dtype=float)
+        target_velocity = np.asarray(target_velocity, dtype=float)
+        secondary = np.asarray(secondary, dtype=float)
         r = error_px.shape[0]
         self._check_shapes(r, jacobian_px, object_jacobian_px, target_velocity, secondary)
-        inputs = (error_px, jacobian_px, object_jacobian_px, target_velocity, secondary)
-        if not all(np.all(np.isfinite(x)) for x in inputs):
-            return self.zero_output(r)
         scale = self.gains.feature_scale
-        error = error_px / scale
-        jacobian = jacobian_px / scale
-        k = self.gains.expand("k", r)
-        kc_error = k / (1.0 + np.abs(error)) * error
-        nu = jacobian.T @ kc_error
-        pinv, sigma_min, damped = self.pseudo_inverse(jacobian)
-        feedforward = pinv @ (np.asarray(object_jacobian_px) / scale) @ target_velocity
-        secondary_term = self.k1 * np.tanh(self.k2 * np.asarray(secondary, dtype=float))
-        null_space = secondary_term - pinv @ (jacobian @ secondary_term)
-        feedback = pinv @ kc_error if self.gains.use_pseudoinverse_feedback else nu
-        raw = -feedback - feedforward + null_space
-        u, factor = saturate(raw, self.velocity_limits)
-        if not np.all(np.isfinite(u)):
+        valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor = passivity_law(
+            error_px / scale,
+            jacobian_px / scale,
+            object_jacobian_px / scale,
+            target_velocity,
+            secondary,
+            self.feature_gains(r),
+            self.k1,
+            self.k2,
+            self.weight_inverse,
+            self.damping,
+            self.velocity_limits,
+            self.gains.use_pseudoinverse_feedback,
+        )
+        if not valid:
             return self.zero_output(r)
         return ControlOutput(
             u=u,
             error=error_px,
-            storage=storage_function(error, k),
+            storage=storage,
             nu=nu,
             feedforward=feedforward,
             null_space=null_space,
@@ -256,6 +244,12 @@ class PassivityController:
             saturated=factor < 1.0,
             scale=factor,
         )
+
+    def feature_gains(self, r: int) -> np.ndarray:
+        """``k_i`` for ``r`` features [1/s]. Shape (r,)."""
+        if self._k is None or self._k.size != r:
+            self._k = self.gains.expand("k", r)
+        return self._k
 
     def zero_output(self, r: int) -> ControlOutput:
         """The safe command for a step without valid measurements: zero velocity."""
@@ -277,17 +271,16 @@ class PassivityController:
         self,
         r: int,
         jacobian: np.ndarray,
-        object_jacobian: npt.ArrayLike,
-        target_velocity: npt.ArrayLike,
-        secondary: npt.ArrayLike,
+        object_jacobian: np.ndarray,
+        target_velocity: np.ndarray,
+        secondary: np.ndarray,
     ) -> None:
         """Raise ShapeError on any inconsistent shape."""
-        expected = {
-            "jacobian": (np.shape(jacobian), (r, self.n)),
-            "object_jacobian": (np.shape(object_jacobian), (r, 3)),
-            "target_velocity": (np.shape(target_velocity), (3,)),
-            "secondary": (np.shape(secondary), (self.n,)),
-        }
-        for name, (got, want) in expected.items():
+        for name, got, want in (
+            ("jacobian", jacobian.shape, (r, self.n)),
+            ("object_jacobian", object_jacobian.shape, (r, 3)),
+            ("target_velocity", target_velocity.shape, (3,)),
+            ("secondary", secondary.shape, (self.n,)),
+        ):
             if got != want:
                 raise ShapeError(name, want, got)

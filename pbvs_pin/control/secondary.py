@@ -154,7 +154,7 @@ class JointLimitAvoidance(SecondaryObjective):
         above = np.maximum(theta - (self.upper - self.margin), 0.0)
         below = np.minimum(theta - (self.lower + self.margin), 0.0)
         out = np.zeros(n)
-        out[n_base:] = -self.gain * np.nan_to_num(above + below, posinf=0.0, neginf=0.0)
+        out[n_base:] = -self.gain * (above + below)  # infinite limits give 0, never NaN
         return out
 
 

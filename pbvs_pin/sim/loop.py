@@ -365,14 +365,14 @@ def simulate(
         frame = setup.sensor.deliver(t)
         if frame is not None:
             perception.take(frame)
-        base = setup.model.base_pose(plant.q)
-        yaw = float(np.arctan2(base.rotation[1, 0], base.rotation[0, 0]))
         if setup.obstacles and step % laser_every == 0:
             laser_reading = _laser(setup, plant.q)
         output, jacobians = _control_step(setup, perception, plant.q, laser_reading, t, control_dt)
         v_ref, v2 = setup.compensator.step(plant.q, plant.v, output.u, control_dt)
         v_ref = np.clip(v_ref, -setup.robot.velocity_limits, setup.robot.velocity_limits)
         if step % log_every == 0:
+            base = setup.robot.base_pose(plant.q)
+            yaw = float(np.arctan2(base.rotation[1, 0], base.rotation[0, 0]))
             recorder.record(
                 t=t,
                 output=output,
@@ -435,11 +435,11 @@ def _control_step(
     measurement = perception.measurement
     if measurement is None or perception.lost:
         return setup.controller.zero_output(setup.features.size), None
-    xi = setup.features.features(measurement)
-    camera_jacobian = model.camera_jacobian(q)
+    camera_jacobian = model.camera_jacobian_unchecked(q)
     rotation = model.data.oMf[model.camera_frame_id].rotation
-    jacobian = setup.features.interaction_matrix(model.camera, measurement) @ camera_jacobian
-    object_jacobian = setup.features.object_jacobian(model.camera, measurement, rotation.T)
+    xi, jacobian, object_jacobian = setup.features.jacobians_from_measurement(
+        model.camera, measurement, camera_jacobian, rotation.T
+    )
     output = setup.controller.step(
         xi - setup.xi_d, jacobian, object_jacobian, perception.velocity(t), secondary
     )

@@ -1,0 +1,90 @@
+"""Benchmark: the control step against the Pinocchio calls it makes, and closed-loop speed.
+
+Run: ``python benchmarks/control_step.py``. Prints, per robot, the median time of one full
+control step (kinematic controller, eq. 34, plus dynamic compensation, eq. 20) and of the
+Pinocchio calls that step makes (joint Jacobians, camera frame placement and Jacobian,
+CRBA, Coriolis matrix, gravity), both
+measured in this run, and their ratio; then the real-time factor of a closed-loop simulation
+with a 1 kHz controller on the reference robot. Medians over repeats: the machine is shared.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+import pinocchio as pin
+
+from pbvs_pin.sim.loop import Perception, _control_step, build, simulate
+from pbvs_pin.sim.scenario import load_scenario
+
+REPEATS = 7
+CALLS = 300
+
+
+def _median_time(function, calls: int = CALLS, repeats: int = REPEATS) -> float:
+    """Median over repeats of the mean time of one call [s]."""
+    samples = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for _ in range(calls):
+            function()
+        samples.append((time.perf_counter() - start) / calls)
+    return statistics.median(samples)
+
+
+def control_step_ratio(robot_name: str) -> tuple[float, float]:
+    """Median control-step time and median time of its Pinocchio calls [s]."""
+    scenario = load_scenario("experiment1").with_values(**{"robot.name": robot_name})
+    setup = build(scenario)
+    perception = Perception(setup)
+    q = setup.plant.q
+    setup.sensor.capture(0.0, setup.robot.camera_pose(q), setup.target.centres(0.0), q)
+    perception.take(setup.sensor.deliver(0.0))
+    v = np.full(setup.robot.n, 0.05)
+    dt = 1e-3
+
+    def step() -> None:
+        output, _ = _control_step(setup, perception, q, (np.inf, 0.0), 0.0, dt)
+        setup.compensator.step(q, v, output.u, dt)
+
+    model, data = setup.model.model, setup.model.data
+    frame = setup.model.camera_frame_id
+    v_pin = setup.model.selection @ v
+
+    def pinocchio_calls() -> None:
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacement(model, data, frame)
+        pin.getFrameJacobian(model, data, frame, pin.LOCAL)
+        pin.crba(model, data, q)
+        pin.computeCoriolisMatrix(model, data, q, v_pin)
+        pin.computeGeneralizedGravity(model, data, q)
+
+    return _median_time(step), _median_time(pinocchio_calls)
+
+
+def closed_loop_real_time_factor(duration: float = 10.0) -> float:
+    """Simulated seconds per wall-clock second of the loop, 1 kHz controller, reference robot.
+
+    The setup (loading the robot, maximising manipulability) is not counted.
+    """
+    scenario = load_scenario("experiment1").with_values(
+        **{"controller.rate": 1000.0, "duration": duration}
+    )
+    return duration / simulate(scenario).meta["wall_time"]
+
+
+def main() -> None:
+    """Print the measurements."""
+    print(f"{'robot':<16}{'n':>3}{'control step [us]':>20}{'pinocchio calls [us]':>23}{'ratio':>8}")
+    for name in ("pioneer_cyton", "pioneer_xarm7"):
+        step, calls = control_step_ratio(name)
+        n = build(load_scenario("experiment1").with_values(**{"robot.name": name})).robot.n
+        print(f"{name:<16}{n:>3}{step * 1e6:>20.1f}{calls * 1e6:>23.1f}{step / calls:>8.2f}")
+    factor = closed_loop_real_time_factor()
+    print(f"closed loop, 1 kHz controller, pioneer_cyton: {factor:.1f}x real time")
+
+
+if __name__ == "__main__":
+    main()
