@@ -7,10 +7,12 @@ constraint forces drop out when projecting with ``S^T``:
 .. math:: M_v = S^T M S,\quad C_v = S^T C S,\quad g_v = S^T g.
 
 Commercial mobile manipulators take velocity references: low-level loops apply
-``tau = K_v (v_ref - v) - D v``. Substituting gives eq. (1) of the paper,
+``tau = K_v (v_ref - v) - D v + G g_v``, where the diagonal ``G`` marks the joints whose servo
+cancels its own gravity load (arm servos do; a platform has no gravity load on its wheels).
+Substituting gives eq. (1) of the paper,
 
 .. math:: M(q)\dot v + C(q, v) v + g(q) = v_{ref},\quad
-          M = K_v^{-1} M_v,\quad C = K_v^{-1}(C_v + D) + I,\quad g = K_v^{-1} g_v.
+          M = K_v^{-1} M_v,\quad C = K_v^{-1}(C_v + D) + I,\quad g = K_v^{-1} (I - G) g_v.
 """
 
 from __future__ import annotations
@@ -31,12 +33,8 @@ PIONEER_TIME_CONSTANTS = (0.26, 0.23)
 """Time constants [s] of a Pioneer's forward speed and yaw rate loops (theta1/theta4 and
 theta2/theta6 of the model identified by Martins et al., 2008)."""
 
-ARM_TIME_CONSTANT = 0.05
-"""Default longest time constant [s] of an arm joint's velocity loop."""
-
-GRAVITY_SPEED_ERROR = 1e-5
-"""Default largest steady velocity error [rad/s or m/s] gravity may cause on an arm joint at
-home: servo loops are stiff enough that the arm does not sag visibly."""
+ARM_TIME_CONSTANT = 0.02
+"""Default time constant [s] of an arm joint's velocity loop."""
 
 
 @dataclass(frozen=True)
@@ -78,15 +76,25 @@ def rigid_body_terms(robot: MobileManipulator, q: npt.ArrayLike, v: npt.ArrayLik
 
 @dataclass(frozen=True)
 class VelocityLoop:
-    """Low-level velocity loops ``tau = K_v (v_ref - v) - D v`` of each actuated velocity.
+    """Low-level velocity loops ``tau = K_v (v_ref - v) - D v + G g_v`` of each velocity.
 
     Attributes:
         gains: ``K_v`` [N s/m for a linear speed, N m s/rad for a rate]. Shape (n,).
         damping: Viscous friction ``D``, same units. Shape (n,).
+        gravity_compensated: Diagonal of ``G``: the loop cancels its joint's gravity load.
+            Shape (n,), bool; None for no compensation anywhere.
     """
 
     gains: np.ndarray
     damping: np.ndarray
+    gravity_compensated: np.ndarray | None = None
+
+    @property
+    def gravity_weight(self) -> np.ndarray:
+        """Diagonal of ``I - G``: 1 where gravity acts on the loop, 0 where it is cancelled."""
+        if self.gravity_compensated is None:
+            return np.ones(len(self.gains))
+        return 1.0 - np.asarray(self.gravity_compensated, dtype=float)
 
     def __post_init__(self) -> None:
         """Reject non-positive gains and negative damping."""
@@ -101,21 +109,21 @@ class VelocityLoop:
         robot: MobileManipulator,
         base: tuple[float, ...] = PIONEER_TIME_CONSTANTS,
         arm: float = ARM_TIME_CONSTANT,
-        gravity_error: float = GRAVITY_SPEED_ERROR,
+        arm_gravity_compensation: bool = True,
     ) -> VelocityLoop:
         """Gains from time constants at the home posture.
 
-        ``K_v,i = M_v,ii(q_home) / tau_i`` for the base. An arm joint gets the larger of
-        ``sum_j |M_v,ij| / tau_arm`` and ``|g_v,i(q_home)| / gravity_error``: the row sum
-        (not only the diagonal) keeps a light joint on a heavy platform from being dragged by
-        the platform's accelerations, and gravity alone moves it by at most
-        ``gravity_error``. The damping is the URDF's joint damping (zero for the base).
+        ``K_v,i = M_v,ii(q_home) / tau_i`` for the base. An arm joint gets
+        ``sum_j |M_v,ij| / tau_arm``: the row sum (not only the diagonal) keeps a light joint
+        on a heavy platform from being dragged by the platform's accelerations. The damping
+        is the URDF's joint damping (zero for the base).
 
         Args:
             robot: The robot.
             base: Time constants of the base velocities [s]; the Pioneer's by default.
-            arm: Longest time constant of an arm joint [s].
-            gravity_error: Largest velocity error gravity may cause at home [rad/s or m/s].
+            arm: Time constant of an arm joint [s].
+            arm_gravity_compensation: Arm servos cancel their own gravity load, as the servos
+                of commercial arms do; without it a light arm sags by ``g / K_v``.
         """
         if len(base) != robot.n_base:
             base = (base[0],) * robot.n_base
@@ -124,23 +132,25 @@ class VelocityLoop:
             raise GainError(f"velocity loop time constants: expected > 0 s, got {taus}")
         terms = rigid_body_terms(robot, robot.home(), np.zeros(robot.n))
         gains = np.diag(terms.mass) / taus
-        coupled = np.abs(terms.mass).sum(axis=1) / taus
-        stiff = np.maximum(coupled, np.abs(terms.gravity) / gravity_error)
-        gains[robot.n_base :] = stiff[robot.n_base :]
+        gains[robot.n_base :] = (np.abs(terms.mass).sum(axis=1) / taus)[robot.n_base :]
         damping = np.concatenate(
             [
                 np.zeros(robot.n_base),
                 np.asarray(robot.model.damping)[robot.model.nv - robot.n_arm :],
             ]
         )
-        return cls(gains, damping)
+        compensated = np.arange(robot.n) >= robot.n_base if arm_gravity_compensation else None
+        return cls(
+            gains, damping, np.zeros(robot.n, dtype=bool) if compensated is None else compensated
+        )
 
     def reference_model(
         self, robot: MobileManipulator, q: npt.ArrayLike, v: npt.ArrayLike
     ) -> DynamicTerms:
         r"""The matrices of eq. (1).
 
-        .. math:: M = K_v^{-1} M_v,\quad C = K_v^{-1}(C_v + D) + I,\quad g = K_v^{-1} g_v
+        .. math:: M = K_v^{-1} M_v,\quad C = K_v^{-1}(C_v + D) + I,\quad
+                  g = K_v^{-1} (I - G) g_v
 
         Args:
             robot: The robot.
@@ -155,5 +165,5 @@ class VelocityLoop:
         return DynamicTerms(
             inverse[:, None] * terms.mass,
             inverse[:, None] * (terms.coriolis + np.diag(self.damping)) + np.eye(len(inverse)),
-            inverse * terms.gravity,
+            inverse * self.gravity_weight * terms.gravity,
         )

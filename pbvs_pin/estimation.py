@@ -49,11 +49,12 @@ class AlphaBetaFilter(VelocityEstimator):
 
     def __init__(self, alpha: float = 0.5, beta: float = 0.1) -> None:
         if not 0.0 < alpha <= 1.0:
-            raise GainError(f"AlphaBetaFilter.alpha: expected 0 < alpha <= 1, got {alpha}")
+            raise GainError(f"AlphaBetaFilter.alpha: expected 0 < alpha <= 1, got {alpha}", "alpha")
         if not 0.0 < beta < 4.0 - 2.0 * alpha:
             raise GainError(
                 f"AlphaBetaFilter.beta: expected 0 < beta < 4 - 2 alpha = {4 - 2 * alpha:g}, "
-                f"got {beta}"
+                f"got {beta}",
+                "beta",
             )
         self.alpha, self.beta = alpha, beta
         self._position = np.zeros(3)

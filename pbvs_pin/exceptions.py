@@ -84,6 +84,17 @@ class NonFiniteValue(PbvsError):
 class GainError(PbvsError):
     """A gain or parameter is outside its valid range."""
 
+    def __init__(self, message: str, field: str = "") -> None:
+        """Keep the message and, when known, the parameter's name.
+
+        Args:
+            message: What is wrong and what was expected.
+            field: Name of the parameter at fault (e.g. ``"alpha"``), so that a scenario can
+                report its dotted field.
+        """
+        self.field = field
+        super().__init__(message)
+
 
 class PointBehindCamera(PbvsError):
     """A point to project lies behind (or on) the camera's image plane."""
@@ -132,3 +143,18 @@ class ScenarioError(PbvsError):
         self.field = field
         where = f"{source}: {field}" if field else source
         super().__init__(f"{where}: {problem}")
+
+
+class ViewerUnavailable(PbvsError):
+    """The Meshcat viewer cannot be started or reached."""
+
+    def __init__(self, reason: str, advice: str) -> None:
+        """Say why, and what to do instead.
+
+        Args:
+            reason: What failed (one line).
+            advice: What the user can do instead, e.g. write a standalone HTML file.
+        """
+        self.reason = reason
+        self.advice = advice
+        super().__init__(f"Meshcat viewer unavailable: {reason}; {advice}")

@@ -227,6 +227,7 @@ def compensation_law(
     selection: np.ndarray,
     gain_inverse: np.ndarray,
     damping: np.ndarray,
+    gravity_weight: np.ndarray,
     rows: np.ndarray,
     k_d: np.ndarray,
     v: np.ndarray,
@@ -236,7 +237,7 @@ def compensation_law(
     r"""Eq. (20) on the velocity-reference model of eq. (1), from Pinocchio's terms.
 
     .. math:: M = K_v^{-1} S^T M_{rb} S,\quad C = K_v^{-1}(S^T C_{rb} S + D) + I,\quad
-              g = K_v^{-1} S^T g_{rb},
+              g = K_v^{-1} (I - G) S^T g_{rb},
 
     .. math:: v_{ref} = M(\dot u - K_D (v - u)) + C v + g
 
@@ -247,6 +248,7 @@ def compensation_law(
         selection: ``S``. Shape (nv, n).
         gain_inverse: ``1 / K_v``. Shape (n,).
         damping: ``D``. Shape (n,).
+        gravity_weight: Diagonal of ``I - G`` (0 where the servo cancels gravity). Shape (n,).
         rows: Which rows are compensated (the others pass ``u`` through). Shape (n,).
         k_d: Diagonal of ``K_D`` [1/s]. Shape (n,).
         v: Measured actuated velocity. Shape (n,).
@@ -261,7 +263,7 @@ def compensation_law(
     mass = np.triu(mass_upper) + np.triu(mass_upper, 1).T
     mass_v = selection.T @ mass @ selection
     coriolis_v = selection.T @ coriolis @ selection
-    gravity_v = selection.T @ gravity
+    gravity_v = gravity_weight * (selection.T @ gravity)
     acceleration = u_dot - k_d * error
     inertial = mass_v @ acceleration + coriolis_v @ v + gravity_v + damping * v
     reference = gain_inverse * inertial + v
@@ -276,13 +278,14 @@ def velocity_loop_step(
     selection: np.ndarray,
     gains: np.ndarray,
     damping: np.ndarray,
+    gravity_weight: np.ndarray,
     v: np.ndarray,
     v_ref: np.ndarray,
     h: float,
 ) -> np.ndarray:
     r"""One semi-implicit step of eq. (1) times ``K_v``: the plant's velocity update.
 
-    .. math:: (M_v + h (K_v + D))\, v_{k+1} = M_v v_k + h (K_v v_{ref} - C_v v_k - g_v)
+    .. math:: (M_v + h (K_v + D))\, v_{k+1} = M_v v_k + h (K_v v_{ref} - C_v v_k - (I - G) g_v)
 
     Args:
         mass_upper: CRBA mass matrix, upper triangle filled. Shape (nv, nv).
@@ -291,6 +294,7 @@ def velocity_loop_step(
         selection: ``S``. Shape (nv, n).
         gains: ``K_v``. Shape (n,).
         damping: ``D``. Shape (n,).
+        gravity_weight: Diagonal of ``I - G`` (0 where the servo cancels gravity). Shape (n,).
         v: Actuated velocity. Shape (n,).
         v_ref: Velocity reference. Shape (n,).
         h: Step [s].
@@ -302,5 +306,5 @@ def velocity_loop_step(
     mass_v = selection.T @ mass @ selection
     lhs = mass_v + h * np.diag(gains + damping)
     rhs = mass_v @ v + h * (gains * v_ref - selection.T @ (coriolis @ (selection @ v)))
-    rhs -= h * (selection.T @ gravity)
+    rhs -= h * gravity_weight * (selection.T @ gravity)
     return np.linalg.solve(lhs, rhs)

@@ -1,14 +1,14 @@
 r"""The simulated robot: eq. (1) with the robot's *true* parameters.
 
-The low-level loops apply ``tau = K_v (v_ref - v) - D v`` to the rigid-body dynamics in
-actuated coordinates,
+The low-level loops apply ``tau = K_v (v_ref - v) - D v + G g_v`` to the rigid-body dynamics
+in actuated coordinates,
 
-.. math:: M_v \dot v + C_v v + g_v = K_v (v_{ref} - v) - D v,
+.. math:: M_v \dot v + C_v v + g_v = K_v (v_{ref} - v) - D v + G g_v,
 
 which is eq. (1) multiplied by ``K_v``. The step is semi-implicit: the stiff loop and friction
 terms are taken at the new velocity, so stiff servo gains stay stable at a 1 ms step,
 
-.. math:: (M_v + h (K_v + D))\, v_{k+1} = M_v v_k + h (K_v v_{ref} - C_v v_k - g_v),
+.. math:: (M_v + h (K_v + D))\, v_{k+1} = M_v v_k + h (K_v v_{ref} - C_v v_k - (I - G) g_v),
 
 then ``q_{k+1} = integrate(q_k, S v_{k+1} h)`` on the configuration manifold.
 """
@@ -47,6 +47,7 @@ class Plant:
         self.robot, self.loop, self.dt = robot, loop, dt
         self.q = robot.check_configuration(q).copy()
         self.v = np.zeros(robot.n)
+        self.gravity_weight = loop.gravity_weight
 
     def step(self, v_ref: np.ndarray) -> None:
         """Advance by one step ``dt`` under the velocity reference ``v_ref`` (shape (n,)).
@@ -60,6 +61,6 @@ class Plant:
         gravity = pin.computeGeneralizedGravity(model, data, self.q)
         self.v = velocity_loop_step(
             mass, coriolis, gravity, selection, self.loop.gains, self.loop.damping,
-            self.v, v_ref, self.dt,
+            self.gravity_weight, self.v, v_ref, self.dt,
         )  # fmt: skip
         self.q = pin.integrate(model, self.q, selection @ (self.v * self.dt))

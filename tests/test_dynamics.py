@@ -102,7 +102,7 @@ def test_reference_robot_mass_from_urdf(cyton, cyton_urdf):
 
 # ================================================================ eq. (1)
 def test_reference_model_is_the_closed_velocity_loop(load):
-    """M vdot + C v + g = v_ref  <=>  rnea(q, v, vdot) = K_v (v_ref - v) - D v."""
+    """M vdot + C v + g = v_ref  <=>  rnea(q, v, vdot) = K_v (v_ref - v) - D v + G g_v."""
     robot = load("pioneer_panda")
     loop = VelocityLoop.from_time_constants(robot)
     rng = np.random.default_rng(44)
@@ -111,10 +111,13 @@ def test_reference_model_is_the_closed_velocity_loop(load):
     model_terms = loop.reference_model(robot, q, v)
     v_ref = model_terms.mass @ acc + model_terms.coriolis @ v + model_terms.gravity
     s = robot.selection
-    torque = s.T @ pin.rnea(robot.model, robot.model.createData(), q, s @ v, s @ acc)
-    np.testing.assert_allclose(
-        loop.gains * (v_ref - v) - loop.damping * v, torque, rtol=1e-9, atol=1e-9
-    )
+    data = robot.model.createData()
+    torque = s.T @ pin.rnea(robot.model, data, q, s @ v, s @ acc)
+    gravity = s.T @ pin.computeGeneralizedGravity(robot.model, data, q)
+    assert loop.gravity_compensated[robot.n_base :].all()
+    assert not loop.gravity_compensated[: robot.n_base].any()
+    servo = loop.gains * (v_ref - v) - loop.damping * v + loop.gravity_compensated * gravity
+    np.testing.assert_allclose(servo, torque, rtol=1e-9, atol=1e-9)
 
 
 def test_velocity_loop_damping_from_urdf(cyton, cyton_urdf):

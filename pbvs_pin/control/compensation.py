@@ -113,5 +113,5 @@ class DynamicCompensator:
         gravity = pin.computeGeneralizedGravity(model, data, q)
         return compensation_law(
             mass, coriolis, gravity, selection, self.gain_inverse, self.loop.damping,
-            self.rows, self.k_d, v, u, self.u_dot,
+            self.loop.gravity_weight, self.rows, self.k_d, v, u, self.u_dot,
         )  # fmt: skip

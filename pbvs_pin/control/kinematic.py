@@ -43,7 +43,9 @@ def _positive_vector(name: str, value: npt.ArrayLike) -> np.ndarray:
     """A 1-D array of finite positive entries, or a GainError naming ``name``."""
     array = np.atleast_1d(np.asarray(value, dtype=float))
     if array.ndim != 1 or not np.all(np.isfinite(array)) or np.any(array <= 0):
-        raise GainError(f"{name}: expected positive finite values, got {value!r}")
+        raise GainError(
+            f"{name}: expected positive finite values, got {value!r}", name.rpartition(".")[2]
+        )
     return array
 
 
@@ -83,7 +85,8 @@ class ServoGains:
             if not symmetric or np.any(np.linalg.eigvalsh(weights) <= 0):
                 raise GainError(
                     f"ServoGains.weights: expected a symmetric positive definite matrix, got "
-                    f"{weights.tolist()}"
+                    f"{weights.tolist()}",
+                    "weights",
                 )
         else:
             _positive_vector("ServoGains.weights", weights)
@@ -100,7 +103,8 @@ class ServoGains:
         if weights.ndim == 2:
             if weights.shape != (size, size):
                 raise GainError(
-                    f"ServoGains.weights: expected a ({size}, {size}) matrix, got {weights.shape}"
+                    f"ServoGains.weights: expected a ({size}, {size}) matrix, got {weights.shape}",
+                    "weights",
                 )
             return np.linalg.inv(weights)
         return np.diag(1.0 / self.expand("weights", size))
@@ -115,7 +119,9 @@ class ServoGains:
         if values.size == 1:
             return np.full(size, float(values[0]))
         if values.size != size:
-            raise GainError(f"ServoGains.{name}: expected 1 or {size} values, got {values.size}")
+            raise GainError(
+                f"ServoGains.{name}: expected 1 or {size} values, got {values.size}", name
+            )
         return values
 
 

@@ -110,6 +110,7 @@ class Setup:
     laser: Laser
     posture_target: np.ndarray
     xi_d: np.ndarray
+    estimator: AlphaBetaFilter
 
 
 def build(scenario: Scenario) -> Setup:
@@ -165,12 +166,15 @@ def build(scenario: Scenario) -> Setup:
     )
     posture_target = max_manipulability_posture(model)
     objectives = _objectives(scenario, model, posture_target)
+    gains = scenario["estimator"]
+    estimator = check(scenario, "estimator", lambda: AlphaBetaFilter(gains["alpha"], gains["beta"]))
     laser_spec = scenario["laser"]
     laser = Laser(laser_spec["field_of_view"], int(laser_spec["beams"]), laser_spec["max_range"])
     return Setup(
         scenario, robot, model, plant, target, features, sensor, controller, compensator,
         objectives, _obstacles(scenario), laser, posture_target,
         np.asarray(target_spec["xi_d"], dtype=float),
+        estimator,
     )  # fmt: skip
 
 
@@ -277,9 +281,7 @@ class Perception:
         self.setup = setup
         spec = setup.scenario["estimator"]
         self.exact = spec["kind"] == "exact"
-        self.filter = check(
-            setup.scenario, "estimator", lambda: AlphaBetaFilter(spec["alpha"], spec["beta"])
-        )
+        self.filter = setup.estimator
         self.measurement: ImageMeasurement | None = None
         self.lost = False
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pbvs_pin.exceptions import PbvsError, ScenarioError
+from pbvs_pin.exceptions import GainError, PbvsError, ScenarioError
 
 SCHEMA: dict[str, dict[str, Any]] = {
     "": {"name": "", "description": "", "duration": 30.0},
@@ -277,10 +277,15 @@ def _obstacle(source: str, index: int, table: Any) -> dict[str, Any]:
 
 
 def check(scenario: Scenario, field: str, action: Any) -> Any:
-    """Run ``action()``; turn a package error into a ScenarioError naming ``field``."""
+    """Run ``action()``; turn a package error into a ScenarioError naming ``field``.
+
+    A :class:`GainError` that names its parameter is reported as ``field.parameter``.
+    """
     try:
         return action()
     except ScenarioError:
         raise
+    except GainError as err:
+        raise scenario.error(f"{field}.{err.field}" if err.field else field, str(err)) from err
     except PbvsError as err:
         raise scenario.error(field, str(err)) from err
