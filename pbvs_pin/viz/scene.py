@@ -35,6 +35,14 @@ Typical use::
         add_target_spheres(vis, centers, diameter=0.05, color=(1, 0, 0))
         poses = robot.trajectory_poses(qs)            # {path: (T, 4, 4)}
         write_replay_html("run.html", vis, times, poses)
+
+A file needs no server: :func:`offline_visualizer` records the scene in this
+process and its ``static_html()`` is the page a server would return.  A
+closed-loop run is drawn by :class:`RunScene` (robot, target, obstacles,
+camera frustum, image plane, trails), shared by the live view
+(:mod:`pbvs_pin.viz.live`) and the replay (:mod:`pbvs_pin.viz.replay`).
+Starting a server that cannot start raises
+:class:`~pbvs_pin.exceptions.ViewerUnavailable`.
 """
 
 from __future__ import annotations
@@ -44,26 +52,38 @@ import io
 import math
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import meshcat
 
+    from pbvs_pin.robot import MobileManipulator
+
 __all__ = [
     "CAMERA_PREFIX",
+    "FRUSTUM_DEPTH",
+    "IMAGE_PLANE_DEPTH",
     "MESHCAT_TO_THREEJS",
     "OBSTACLES_PREFIX",
+    "PLATFORM_TRAIL_PATH",
     "ROBOT_PREFIX",
     "ROOT_PREFIX",
     "TARGETS_PREFIX",
+    "TARGET_TRAIL_PATH",
     "TRAIL_PATH",
+    "VIEWER_ADVICE",
     "RobotScene",
+    "RunFacts",
+    "RunScene",
     "add_box_obstacle",
     "add_camera_frustum",
+    "add_camera_triad",
     "add_cylinder_obstacle",
     "add_image_plane",
     "add_sphere",
@@ -71,11 +91,15 @@ __all__ = [
     "add_trail",
     "feature_point_poses",
     "frustum_corners",
+    "offline_visualizer",
     "open_visualizer",
     "pixels_to_image_plane",
     "rgb_to_int",
     "set_camera_view",
+    "start_visualizer",
+    "stop_visualizer",
     "translation_pose",
+    "two_sphere_points",
     "write_replay_html",
 ]
 
@@ -187,14 +211,106 @@ def _intrinsic(T: np.ndarray):
     return lambda self: Tt
 
 
+# --------------------------------------------------------------------------
+# viewers: served (a meshcat server) or offline (a file only)
+# --------------------------------------------------------------------------
+VIEWER_ADVICE = (
+    "write a standalone HTML file instead, which needs no server: "
+    "`pbvs-pin view ROBOT --html FILE`, or `pbvs-pin run SCENARIO --html FILE` "
+    "(the replay is written next to the results); then open that file in a browser"
+)
+"""What :class:`~pbvs_pin.exceptions.ViewerUnavailable` advises by default."""
+
+
+def _last_line(text: str) -> str:
+    """The last non-empty line of ``text`` (meshcat reports server failures on stdout)."""
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return lines[-1] if lines else ""
+
+
+def start_visualizer(
+    zmq_url: str | None = None,
+    timeout: float | None = None,
+    advice: str = VIEWER_ADVICE,
+) -> meshcat.Visualizer:
+    """Start a private meshcat server (or connect to one) and return its visualizer.
+
+    Stop it with :func:`stop_visualizer`.  Meshcat's own messages (its URL,
+    and the server's output when it dies) are captured, not printed; the
+    error message quotes the last line of them.
+
+    Args:
+        zmq_url: URL of an already running ``meshcat-server``; ``None`` starts
+            a private one on the loopback interface.
+        timeout: If given, every later command waits at most this long for
+            the server [s] and then raises ``zmq.Again`` instead of blocking
+            forever on a dead server.
+        advice: What the error message tells the user to do instead.
+
+    Returns:
+        A connected ``meshcat.Visualizer`` rooted at ``/meshcat``.
+
+    Raises:
+        ViewerUnavailable: If the server cannot be started or reached (zmq
+            port or permission errors, ``meshcat.servers.zmqserver`` missing
+            or crashing, ...).
+    """
+    from pbvs_pin.exceptions import ViewerUnavailable
+
+    captured = io.StringIO()
+    try:
+        import meshcat
+
+        with contextlib.redirect_stdout(captured):  # meshcat prints its URL
+            vis = meshcat.Visualizer(zmq_url=zmq_url)
+    # meshcat reports failures as RuntimeError, ValueError, zmq.ZMQError, OSError or a bare
+    # Exception from the server subprocess: all of them mean "no viewer".
+    except Exception as err:
+        detail = _last_line(captured.getvalue())
+        reason = f"{type(err).__name__}: {err}".replace("\n", " ")
+        if detail and detail not in reason:
+            reason = f"{reason} ({detail})"
+        raise ViewerUnavailable(f"could not start the meshcat server: {reason}", advice) from err
+    if timeout is not None:
+        import zmq
+
+        socket = vis.window.zmq_socket
+        milliseconds = max(1, round(1000 * float(timeout)))
+        socket.setsockopt(zmq.RCVTIMEO, milliseconds)
+        socket.setsockopt(zmq.SNDTIMEO, milliseconds)
+        socket.setsockopt(zmq.LINGER, 0)
+    return vis
+
+
+def stop_visualizer(vis: meshcat.Visualizer) -> None:
+    """Close the connection of ``vis`` and kill the server process it started (if any).
+
+    Never raises; a visualizer from :func:`offline_visualizer` is left alone.
+
+    Args:
+        vis: A visualizer from :func:`start_visualizer`.
+    """
+    window = vis.window
+    socket = getattr(window, "zmq_socket", None)
+    if socket is not None:
+        with contextlib.suppress(Exception):
+            socket.close(linger=0)
+    proc = getattr(window, "server_proc", None)
+    if proc is not None and proc.poll() is None:
+        proc.kill()
+        with contextlib.suppress(Exception):
+            proc.wait(timeout=10)
+
+
 @contextlib.contextmanager
 def open_visualizer(zmq_url: str | None = None) -> Iterator[meshcat.Visualizer]:
     """Start (or connect to) a meshcat server and stop it on exit.
 
     ``Visualizer.static_html()`` asks the running zmq server for the scene,
-    so a server must be alive while a replay is written.  With
-    ``zmq_url=None`` meshcat starts its own server on the loopback interface;
-    this context manager kills exactly that process when leaving.
+    so a server must be alive while a replay is written (or use
+    :func:`offline_visualizer`, which needs none).  With ``zmq_url=None``
+    meshcat starts its own server on the loopback interface; this context
+    manager kills exactly that process when leaving.
 
     Args:
         zmq_url: URL of an already running ``meshcat-server``; ``None`` starts
@@ -202,22 +318,120 @@ def open_visualizer(zmq_url: str | None = None) -> Iterator[meshcat.Visualizer]:
 
     Yields:
         A connected ``meshcat.Visualizer`` rooted at ``/meshcat``.
-    """
-    import meshcat
 
-    with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its URL
-        vis = meshcat.Visualizer(zmq_url=zmq_url)
+    Raises:
+        ViewerUnavailable: If the server cannot be started or reached.
+    """
+    vis = start_visualizer(zmq_url)
     try:
         yield vis
     finally:
-        window = vis.window
-        with contextlib.suppress(Exception):
-            window.zmq_socket.close(linger=0)
-        proc = getattr(window, "server_proc", None)
-        if proc is not None and proc.poll() is None:
-            proc.kill()
-            with contextlib.suppress(Exception):
-                proc.wait(timeout=10)
+        stop_visualizer(vis)
+
+
+# The page meshcat 0.3.2's server returns for "get_scene" (zmqserver.py), verbatim, so that
+# an offline scene gives byte for byte the file the server would.
+_STATIC_HTML = """
+                <!DOCTYPE html>
+                <html>
+                    <head> <meta charset=utf-8> <title>MeshCat</title> </head>
+                    <body>
+                        <div id="meshcat-pane">
+                        </div>
+                        <script>
+                            {mainminjs}
+                        </script>
+                        <script>
+                            var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+                            {commands}
+                        </script>
+                         <style>
+                            body {{margin: 0; }}
+                            #meshcat-pane {{
+                                width: 100vw;
+                                height: 100vh;
+                                overflow: hidden;
+                            }}
+                        </style>
+                        <script id="embedded-json"></script>
+                    </body>
+                </html>
+            """  # noqa: E501
+
+
+class _SceneRecorder:
+    """Stands in for meshcat's ``ViewerWindow``: keeps the scene tree in this process.
+
+    It stores every command exactly as meshcat's zmq server does (last object and transform
+    of each node, its properties in order, its animation) and builds the same standalone page
+    from them, so writing HTML needs no server, no port and no subprocess.
+    """
+
+    server_proc = None
+    zmq_url = None
+    web_url = None
+
+    def __init__(self) -> None:
+        from meshcat.servers.tree import SceneTree
+
+        self.tree = SceneTree()
+
+    def send(self, command: Any) -> None:
+        """Record one meshcat command (``SetObject``, ``SetTransform``, ...)."""
+        import umsgpack
+        from meshcat.servers.tree import SceneTree, find_node
+
+        data = command.lower()
+        kind = data["type"]
+        path = [name for name in data["path"].split("/") if name]
+        packed = umsgpack.packb(data)
+        if kind == "delete":
+            if path:
+                find_node(self.tree, path[:-1]).pop(path[-1], None)
+            else:
+                self.tree = SceneTree()
+            return
+        node = find_node(self.tree, path)
+        if kind == "set_transform":
+            node.transform = packed
+        elif kind == "set_object":
+            node.object = packed
+            node.properties = []
+        elif kind == "set_property":
+            node.properties.append(packed)
+        elif kind == "set_animation":
+            node.animation = packed
+        else:
+            raise ValueError(f"an offline scene cannot handle meshcat command {kind!r}")
+
+    def get_scene(self) -> str:
+        """The standalone HTML page of the recorded scene."""
+        import meshcat.servers.zmqserver as server
+        from meshcat.servers.tree import walk
+
+        commands = ""
+        for node in walk(self.tree):
+            for blob in (node.object, *node.properties, node.transform, node.animation):
+                if blob is not None:
+                    commands += server.create_command(blob)
+        script = Path(server.VIEWER_ROOT) / "main.min.js"
+        return _STATIC_HTML.format(mainminjs=script.read_text(encoding="utf-8"), commands=commands)
+
+
+def offline_visualizer() -> meshcat.Visualizer:
+    """A visualizer that records the scene in-process, for writing standalone HTML.
+
+    It accepts every scene command of a served visualizer and its
+    ``static_html()`` returns the page a meshcat server would return for the
+    same commands, but there is no server and no URL: nothing can fail to
+    start and nothing needs stopping.  Use it whenever only a file is wanted.
+
+    Returns:
+        A ``meshcat.Visualizer`` rooted at ``/meshcat``.
+    """
+    import meshcat
+
+    return meshcat.Visualizer(window=_SceneRecorder())
 
 
 def set_camera_view(vis: meshcat.Visualizer, position: Sequence[float]) -> None:
@@ -250,6 +464,21 @@ _LOAD_FAILURE_KEYS = (
 )
 
 
+def _shaped(placement: pin.SE3, geom: pin.GeometryObject) -> np.ndarray:
+    """Transform of a geometry node drawn at ``placement``, with its offset and scale.
+
+    Same special case as pinocchio's MeshcatVisualizer: planes are drawn at
+    their offset ``d`` along the normal; ``meshScale`` scales the rotation
+    columns.
+    """
+    T = np.array(placement.homogeneous)
+    shape = geom.geometry
+    if type(shape).__name__ in ("Plane", "Halfspace"):
+        T[:3, 3] += placement.rotation @ (shape.d * np.asarray(shape.n))
+    T[:3, :3] = T[:3, :3] * np.asarray(geom.meshScale, dtype=float)[None, :]
+    return T
+
+
 class RobotScene:
     """A robot's visual geometries in meshcat, posed from Pinocchio.
 
@@ -260,12 +489,21 @@ class RobotScene:
     such node is the geometry placement ``oMg`` (times its ``meshScale``), so
     the node's world matrix in the browser is Pinocchio's placement.
 
+    With ``group_by_joint=True`` the geometries are loaded at
+    ``<prefix>/<joint name>/<geometry name>`` instead, each with its fixed
+    placement in the joint frame (``jMg`` times ``meshScale``), and only the
+    joint nodes move (transform ``oMi``).  The world matrix of every geometry
+    node is the same, but a pose update takes one transform per joint rather
+    than one per geometry (TIAGo: 9 instead of 65).
+
     Attributes:
         vis: The meshcat visualizer the robot was loaded into.
         model: The kinematic model.
         visual_model: The visual geometry model.
         prefix: Meshcat path prefix of the robot.
         paths: Geometry name -> meshcat path, for every loaded geometry.
+        joint_paths: Joint index -> meshcat path of its node, for every moving
+            joint carrying a loaded geometry (empty unless ``group_by_joint``).
         failed: Names of geometries that could not be converted (only
             non-empty when ``strict=False``).
     """
@@ -278,6 +516,7 @@ class RobotScene:
         prefix: str = ROBOT_PREFIX,
         color: Sequence[float] | None = None,
         strict: bool = True,
+        group_by_joint: bool = False,
     ) -> None:
         """Load all visual geometries into ``vis``.
 
@@ -291,6 +530,7 @@ class RobotScene:
                 materials unless the geometry sets ``overrideMaterial``.
             strict: Raise ``RuntimeError`` if a geometry cannot be converted
                 (otherwise it is skipped and listed in ``failed``).
+            group_by_joint: Put geometries under one node per joint (see above).
 
         Raises:
             RuntimeError: ``strict`` and some geometry failed to load.
@@ -311,12 +551,18 @@ class RobotScene:
         helper.viewerVisualGroupName = self.prefix
         self._helper = helper
 
+        self.group_by_joint = bool(group_by_joint)
         self.paths: dict[str, str] = {}
+        self.joint_paths: dict[int, str] = {}
         self.failed: list[str] = []
         rgba = None if color is None else list(np.asarray(color, dtype=float))
         if rgba is not None and len(rgba) == 3:
             rgba.append(1.0)
         for geom in visual_model.geometryObjects:
+            group = self.prefix
+            if self.group_by_joint:
+                group = f"{self.prefix}/{model.names[geom.parentJoint].replace('/', '_')}"
+                helper.viewerVisualGroupName = group
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 helper.loadViewerGeometryObject(geom, pin.GeometryType.VISUAL, rgba)
@@ -331,7 +577,11 @@ class RobotScene:
                 if strict:
                     raise RuntimeError(f"could not load geometry {geom.name!r}: {problems[0]}")
                 continue
-            self.paths[geom.name] = f"{self.prefix}/{geom.name}"
+            self.paths[geom.name] = f"{group}/{geom.name}"
+            if self.group_by_joint:
+                vis[self.paths[geom.name]].set_transform(_shaped(geom.placement, geom))
+                if geom.parentJoint > 0:
+                    self.joint_paths[geom.parentJoint] = group
 
     def poses(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """World poses of all loaded geometries at configuration ``q``.
@@ -341,29 +591,27 @@ class RobotScene:
 
         Returns:
             Meshcat path -> 4x4 transform ``oMg`` (world <- geometry) with
-            the geometry's ``meshScale`` applied to the rotation columns.
+            the geometry's ``meshScale`` applied to the rotation columns; with
+            ``group_by_joint``, joint node path -> ``oMi`` (world <- joint).
         """
         q = np.asarray(q, dtype=float).reshape(self.model.nq)
         pin.forwardKinematics(self.model, self.data, q)
+        if self.group_by_joint:
+            return {
+                path: np.array(self.data.oMi[joint].homogeneous)
+                for joint, path in self.joint_paths.items()
+            }
         pin.updateGeometryPlacements(self.model, self.data, self.visual_model, self.geom_data)
         out: dict[str, np.ndarray] = {}
         for gid, geom in enumerate(self.visual_model.geometryObjects):
             path = self.paths.get(geom.name)
             if path is None:
                 continue
-            M = self.geom_data.oMg[gid]
-            T = np.array(M.homogeneous)
-            shape = geom.geometry
-            # Same special case as pinocchio's MeshcatVisualizer: planes are
-            # drawn at their offset d along the normal.
-            if type(shape).__name__ in ("Plane", "Halfspace"):
-                T[:3, 3] += M.rotation @ (shape.d * np.asarray(shape.n))
-            T[:3, :3] = T[:3, :3] * np.asarray(geom.meshScale, dtype=float)[None, :]
-            out[path] = T
+            out[path] = _shaped(self.geom_data.oMg[gid], geom)
         return out
 
     def trajectory_poses(self, qs: np.ndarray) -> dict[str, np.ndarray]:
-        """World poses of all loaded geometries along a trajectory.
+        """World poses of all loaded geometries (or joint nodes) along a trajectory.
 
         Args:
             qs: Configurations, shape (T, model.nq).
@@ -375,7 +623,7 @@ class RobotScene:
         if qs.ndim != 2 or qs.shape[1] != self.model.nq:
             raise ValueError(f"qs must have shape (T, {self.model.nq}), got {qs.shape}")
         frames = [self.poses(q) for q in qs]
-        return {p: np.stack([f[p] for f in frames]) for p in self.paths.values()}
+        return {p: np.stack([f[p] for f in frames]) for p in frames[0]}
 
     def display(self, q: np.ndarray) -> None:
         """Set the live meshcat transforms of all geometries for ``q``.
@@ -789,6 +1037,29 @@ def feature_point_poses(
     return {f"{camera_path}/image/{kind}/{i}": translation_pose(p) for i, p in enumerate(pts)}
 
 
+def add_camera_triad(
+    vis: meshcat.Visualizer, scale: float = 0.08, camera_path: str = CAMERA_PREFIX
+) -> str:
+    """Add a small axis triad (x red, y green, z blue) at the camera frame.
+
+    With the optical-frame convention, blue is the optical axis, red points
+    right and green points down in the image.
+
+    Args:
+        vis: Visualizer.
+        scale: Length of each axis, m.
+        camera_path: Meshcat path of the camera node.
+
+    Returns:
+        Path of the triad node (``<camera_path>/triad``).
+    """
+    import meshcat.geometry as mg
+
+    path = f"{camera_path}/triad"
+    vis[path].set_object(mg.triad(float(scale)))
+    return path
+
+
 # --------------------------------------------------------------------------
 # replay
 # --------------------------------------------------------------------------
@@ -897,3 +1168,217 @@ def write_replay_html(
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(html, encoding="utf-8")
     return out
+
+
+# --------------------------------------------------------------------------
+# the scene of a closed-loop run (shared by the live view and the replay)
+# --------------------------------------------------------------------------
+FRUSTUM_DEPTH = 0.2
+"""Length of a run's camera frustum along the optical axis [m]."""
+IMAGE_PLANE_DEPTH = 0.15
+"""Distance of a run's virtual image plane in front of the camera [m] (inside the frustum)."""
+TRIAD_SCALE = 0.08
+"""Axis length of the camera triad [m]."""
+PLATFORM_TRAIL_PATH = f"{TRAIL_PATH}_platform"
+"""Meshcat path of the platform's path on the ground."""
+TARGET_TRAIL_PATH = f"{TRAIL_PATH}_target"
+"""Meshcat path of the target's path (midpoint of the two sphere centres)."""
+TRAIL_HEIGHT = 0.01
+"""Height of the platform trail above the ground [m], so that it is not hidden by it."""
+SPHERE_COLORS = ((0.9, 0.1, 0.1), (0.1, 0.3, 0.9))
+"""Upper and lower target sphere colours."""
+RUN_VIEW = (-0.9, -1.3, 0.9)
+"""Initial position of the browser's viewing camera for a run [m] (it looks at the origin)."""
+
+
+def two_sphere_points(xi: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """Image points of both spheres from the paper's features ``xi = [u1, v1, v2]``.
+
+    The features leave out ``u2``; the two spheres are vertically aligned, so
+    the lower one is drawn at ``u2 = u1``.
+
+    Args:
+        xi: Features in the paper's sign convention [px]. Shape (3,).
+
+    Returns:
+        ``[[u1, v1], [u1, v2]]`` [px]. Shape (2, 2).
+    """
+    u1, v1, v2 = np.asarray(xi, dtype=float).reshape(3)
+    return np.array([[u1, v1], [u1, v2]])
+
+
+@dataclass(frozen=True)
+class RunFacts:
+    """What a run's scene is drawn from, besides the robot (a scenario or a log's meta).
+
+    Attributes:
+        target_diameter: Diameter of each target sphere [m].
+        target_separation: Distance between the two sphere centres [m].
+        desired_points: Desired image points ``[u, v]`` of both spheres, in the
+            paper's sign convention [px]. Shape (2, 2).
+        obstacles: Obstacle tables as in a scenario: ``kind`` ("circle" or
+            "box"), ``x``, ``y`` [m], then ``radius`` [m] or ``size_x``,
+            ``size_y`` [m] and ``yaw`` [rad], and an optional ``height`` [m].
+    """
+
+    target_diameter: float
+    target_separation: float
+    desired_points: np.ndarray
+    obstacles: tuple[Mapping[str, Any], ...] = ()
+
+
+def _add_obstacle(vis: meshcat.Visualizer, index: int, table: Mapping[str, Any]) -> str:
+    """Draw one scenario obstacle table; return its path."""
+    height = float(table.get("height", 0.4))
+    name = f"obstacle_{index}"
+    if table["kind"] == "circle":
+        return add_cylinder_obstacle(vis, name, (table["x"], table["y"]), table["radius"], height)
+    size = (table["size_x"], table["size_y"], height)
+    return add_box_obstacle(vis, name, (table["x"], table["y"]), size, table.get("yaw", 0.0))
+
+
+class RunScene:
+    """The scene of a closed-loop run, built once and posed per instant.
+
+    It holds the robot (:class:`RobotScene`, one node per joint), the two target spheres, the
+    obstacles, the camera node (frustum, axis triad and a virtual image plane
+    with the fixed desired points and the moving current points) and two
+    trails (platform and target paths).  The live view sends
+    :meth:`poses` to a served visualizer at every update; the replay keys
+    them into an animation.  Both therefore draw exactly the same scene.
+
+    Attributes:
+        vis: The visualizer the scene lives in.
+        robot: The robot drawn (a :class:`pbvs_pin.robot.MobileManipulator`).
+        facts: Target, desired features and obstacles.
+        robot_scene: The robot's geometries.
+        spheres: Meshcat paths of the upper and lower sphere.
+        obstacles: Meshcat paths of the obstacles.
+        frustum: Meshcat path of the frustum.
+        image: ``{"plane": [...], "desired": [...], "current": [...]}`` paths.
+    """
+
+    def __init__(
+        self,
+        vis: meshcat.Visualizer,
+        robot: MobileManipulator,
+        facts: RunFacts,
+        strict: bool = False,
+    ) -> None:
+        """Draw everything (the robot at its home configuration, spheres at the origin).
+
+        Args:
+            vis: Visualizer (served or offline).
+            robot: The robot; its ``camera`` gives the intrinsics drawn.
+            facts: Target, desired features and obstacles.
+            strict: Raise if a robot geometry cannot be converted (otherwise it
+                is skipped and listed in ``robot_scene.failed``).
+
+        Raises:
+            RuntimeError: ``strict`` and some geometry failed to load.
+        """
+        self.vis = vis
+        self.robot = robot
+        self.facts = facts
+        camera = robot.camera
+        self.robot_scene = RobotScene(
+            vis, robot.model, robot.visual_model, strict=strict, group_by_joint=True
+        )
+        self.spheres = add_target_spheres(
+            vis, np.zeros((2, 3)), facts.target_diameter, list(SPHERE_COLORS)
+        )
+        self.obstacles = [_add_obstacle(vis, i, o) for i, o in enumerate(facts.obstacles)]
+        intrinsics = (camera.focal_px, camera.width, camera.height)
+        self.frustum = add_camera_frustum(
+            vis, *intrinsics, FRUSTUM_DEPTH, principal_point=camera.principal_point
+        )
+        add_camera_triad(vis, TRIAD_SCALE)
+        plane_width = camera.width / camera.focal_px * IMAGE_PLANE_DEPTH
+        desired = camera.to_pixel(np.asarray(facts.desired_points, dtype=float).reshape(2, 2))
+        self.image = add_image_plane(
+            vis, *intrinsics, desired, depth=IMAGE_PLANE_DEPTH,
+            point_diameter=0.04 * plane_width, principal_point=camera.principal_point,
+        )  # fmt: skip
+        self.trails = (PLATFORM_TRAIL_PATH, TARGET_TRAIL_PATH)
+        set_camera_view(vis, RUN_VIEW)
+        self._nodes: dict[str, meshcat.Visualizer] = {}
+        self._sent: dict[str, np.ndarray] = {}
+
+    def image_point_poses(self, points: npt.ArrayLike) -> dict[str, np.ndarray]:
+        """Transforms of the current feature points in the camera frame.
+
+        Args:
+            points: Image points ``[u, v]`` of both spheres in the paper's sign
+                convention [px]; rows with NaN are left out. Shape (2, 2).
+
+        Returns:
+            Path -> 4x4 translation on the image plane, for the finite rows.
+        """
+        camera = self.robot.camera
+        points = np.asarray(points, dtype=float).reshape(-1, 2)
+        poses = feature_point_poses(
+            camera.to_pixel(points), camera.focal_px, camera.width, camera.height,
+            IMAGE_PLANE_DEPTH, principal_point=camera.principal_point,
+        )  # fmt: skip
+        finite = np.all(np.isfinite(points), axis=1)
+        return {path: T for (path, T), ok in zip(poses.items(), finite, strict=True) if ok}
+
+    def poses(
+        self, q: npt.ArrayLike, centres: npt.ArrayLike, points: npt.ArrayLike | None = None
+    ) -> dict[str, np.ndarray]:
+        """Every moving transform at one instant.
+
+        Args:
+            q: Robot configuration. Shape (nq,).
+            centres: Upper and lower sphere centres in the world [m]. Shape (2, 3).
+            points: Current image points ``[u, v]`` [px] (see
+                :meth:`image_point_poses`); ``None`` leaves them out.
+
+        Returns:
+            Meshcat path -> 4x4 transform (relative to the parent node): robot
+            geometries and spheres in the world, the camera node
+            (``transform_camera_to_world``), current points in the camera frame.
+        """
+        q = np.asarray(q, dtype=float)
+        out = self.robot_scene.poses(q)
+        centres = np.asarray(centres, dtype=float).reshape(2, 3)
+        for path, centre in zip(self.spheres, centres, strict=True):
+            out[path] = translation_pose(centre)
+        out[CAMERA_PREFIX] = np.array(self.robot.camera_pose(q).homogeneous)
+        if points is not None:
+            out.update(self.image_point_poses(points))
+        return out
+
+    def platform_point(self, q: npt.ArrayLike) -> npt.NDArray[np.float64]:
+        """Point of the platform trail: the base origin, just above the ground [m]. Shape (3,)."""
+        point = np.array(self.robot.base_pose(np.asarray(q, dtype=float)).translation, float)
+        point[2] = TRAIL_HEIGHT
+        return point
+
+    def apply(self, poses: Mapping[str, np.ndarray]) -> None:
+        """Send the transforms that changed since the last call (one meshcat command each).
+
+        Args:
+            poses: Meshcat path -> 4x4 transform, e.g. from :meth:`poses`.
+        """
+        for path, T in poses.items():
+            if path in self._sent and np.array_equal(self._sent[path], T):
+                continue
+            node = self._nodes.get(path)
+            if node is None:
+                node = self._nodes[path] = self.vis[path]
+            node.set_transform(T)
+            self._sent[path] = T
+
+    def draw_trails(self, platform: npt.ArrayLike, target: npt.ArrayLike) -> None:
+        """(Re)draw the platform and target trails; a trail with < 2 points is skipped.
+
+        Args:
+            platform: Platform trail points in the world [m]. Shape (N, 3).
+            target: Target trail points in the world [m]. Shape (M, 3).
+        """
+        colours = ((0.9, 0.2, 0.1), (0.1, 0.3, 0.9))
+        for path, points, colour in zip(self.trails, (platform, target), colours, strict=True):
+            points = np.asarray(points, dtype=float).reshape(-1, 3)
+            if len(points) >= 2:
+                add_trail(self.vis, points, colour, path=path)

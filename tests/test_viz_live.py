@@ -1,0 +1,326 @@
+"""The live Meshcat view of a run, the robot viewer, and what happens when no viewer can start.
+
+A headless Chromium connects to the live server's URL *before* the run, so the checks see what a
+user's browser receives over the websocket while ``simulate`` calls ``LiveView.show``.
+References are independent of the viewer code: Pinocchio's placements of the last snapshot's
+configuration and the snapshot itself.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+import types
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from browser import JS_DESCRIBE, Page, chromium, geometry_placements
+
+import pbvs_pin.viz.live as live_module
+import pbvs_pin.viz.scene as scene
+from pbvs_pin.cli import main
+from pbvs_pin.exceptions import PbvsError, ViewerUnavailable
+from pbvs_pin.sim.loop import simulate
+from pbvs_pin.sim.scenario import load_scenario, scenario_dir
+from pbvs_pin.viz.live import LiveView, view_robot
+
+# meshcat 0.3.2 imports a pyzmq module that pyzmq itself deprecates.
+pytestmark = pytest.mark.filterwarnings(
+    "ignore:zmq.eventloop.ioloop is deprecated:DeprecationWarning"
+)
+
+POSE_TOL = 1e-5  # float32 transforms in the page
+SPHERES = ["meshcat/pbvs/targets/sphere_0", "meshcat/pbvs/targets/sphere_1"]
+CAMERA = "meshcat/pbvs/camera"
+CURRENT = ["meshcat/pbvs/camera/image/current/0", "meshcat/pbvs/camera/image/current/1"]
+TRAILS = ["meshcat/pbvs/trail_platform", "meshcat/pbvs/trail_target"]
+
+
+JS_WATCH_CAMERA = """() => {
+    window.pbvsCameraSeen = [];
+    const watch = () => {
+        const x = window.viewer.scene_tree.children.meshcat.children.pbvs.children.camera
+            .object.position.x;
+        const seen = window.pbvsCameraSeen;
+        if (seen.length === 0 || seen[seen.length - 1] !== x) seen.push(x);
+        requestAnimationFrame(watch);
+    };
+    watch();
+}"""
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with chromium() as b:
+        yield b
+
+
+def _geometry_paths(robot) -> dict[str, str]:
+    model = robot.model
+    return {
+        g.name: f"meshcat/pbvs/robot/{model.names[g.parentJoint]}/{g.name}"
+        for g in robot.visual_model.geometryObjects
+    }
+
+
+def _camera_pose(robot, q) -> pin.SE3:
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, q)
+    return pin.SE3(data.oMf[robot.model.getFrameId(robot.camera_frame)])
+
+
+@pytest.fixture(scope="module")
+def live_run(browser):
+    """Two seconds of experiment 1 shown live, with a browser watching from the start."""
+    scenario = load_scenario("experiment1").with_values(duration=2.0)
+    snapshots = []
+    with LiveView(scenario) as live:
+        assert live.url.startswith("http://")
+        paths = _geometry_paths(live.robot)
+        page = Page(browser, live.url)
+        page.wait_ready([*paths.values(), *SPHERES, *CURRENT], n_actions=0)
+        start = page.world_poses(list(paths.values()))
+        # record every distinct camera position the page shows while the run goes on
+        page.page.evaluate(JS_WATCH_CAMERA)
+
+        def observer(snapshot):
+            snapshots.append(snapshot)
+            live.show(snapshot)
+
+        log = simulate(scenario, observer=observer)
+        assert live.flush()
+        stats = live.stats()
+        static_html = live.static_html()
+        # the websocket delivers asynchronously: wait for the last pose to arrive
+        last = geometry_placements(live.robot.model, live.robot.visual_model, snapshots[-1].q)
+        deadline = time.monotonic() + 15.0
+        while True:
+            now = page.world_poses(list(paths.values()))
+            error = max(np.abs(now[p] - last[n]).max() for n, p in paths.items())
+            if error < POSE_TOL or time.monotonic() > deadline:
+                break
+            time.sleep(0.1)
+        seen = page.page.evaluate("() => window.pbvsCameraSeen")
+        yield {
+            "seen": seen,
+            "live": live,
+            "log": log,
+            "snapshots": snapshots,
+            "paths": paths,
+            "page": page,
+            "start": start,
+            "stats": stats,
+            "static_html": static_html,
+        }
+        page.page.close()
+
+
+def test_live_page_shows_the_last_snapshot(live_run):
+    live, page, snapshots = live_run["live"], live_run["page"], live_run["snapshots"]
+    robot, paths = live.robot, live_run["paths"]
+    assert len(snapshots) == len(live_run["log"]["t"]) == 100
+    q = snapshots[-1].q
+    expected = geometry_placements(robot.model, robot.visual_model, q)
+    now = page.world_poses([*paths.values(), *SPHERES, CAMERA, *CURRENT])
+    moved = max(np.abs(now[p] - live_run["start"][p]).max() for p in paths.values())
+    assert moved > 0.01, "the robot must have moved during the run"
+    for name, path in paths.items():
+        np.testing.assert_allclose(now[path], expected[name], atol=POSE_TOL, err_msg=name)
+    for path, centre in zip(SPHERES, snapshots[-1].centres, strict=True):
+        np.testing.assert_allclose(now[path][:3, 3], centre, atol=POSE_TOL, err_msg=path)
+    camera = _camera_pose(robot, q)
+    np.testing.assert_allclose(now[CAMERA], camera.homogeneous, atol=POSE_TOL)
+    # current points: the measured [u, v] on the image plane (pixel col = cx - u, row = cy - v)
+    f, depth = robot.camera.focal_px, scene.IMAGE_PLANE_DEPTH
+    assert np.all(np.isfinite(snapshots[-1].points))
+    for path, (u, v) in zip(CURRENT, snapshots[-1].points, strict=True):
+        want = camera.act(np.array([-u / f * depth, -v / f * depth, depth]))
+        np.testing.assert_allclose(now[path][:3, 3], want, atol=POSE_TOL, err_msg=path)
+    assert page.errors == []
+
+
+def test_live_trails_follow_the_run(live_run):
+    page = live_run["page"]
+    desc = page.page.evaluate(JS_DESCRIBE, TRAILS)
+    for path in TRAILS:
+        assert desc[path]["type"] == "Line", desc
+        assert desc[path]["vertices"] >= 10, desc
+    # the target moves at 0.1 m/s; its trail reaches the last snapshot's midpoint
+    last = page.page.evaluate(
+        """(path) => {
+            let n = window.viewer.scene_tree;
+            for (const s of path.split('/')) n = n.children[s];
+            const a = n.children['<object>'].object.geometry.attributes.position;
+            return [a.getX(a.count - 1), a.getY(a.count - 1), a.getZ(a.count - 1)];
+        }""",
+        TRAILS[1],
+    )
+    np.testing.assert_allclose(last, live_run["snapshots"][-1].centres.mean(axis=0), atol=1e-5)
+
+
+def test_live_server_scene_and_cost(live_run):
+    html = live_run["static_html"]
+    assert "new MeshCat.Viewer(" in html and html.count("fetch(") > 20
+    stats = live_run["stats"]
+    print(
+        f"LiveView.show: {stats.snapshots} calls, {stats.frames} sent, "
+        f"mean {1e6 * stats.show_seconds:.0f} us/call, {1e3 * stats.frame_seconds:.2f} ms/sent"
+    )
+    assert stats.snapshots == 100 and 2 <= stats.frames <= stats.snapshots
+    assert stats.show_seconds < stats.frame_seconds
+
+
+def test_live_page_is_updated_during_the_run(live_run):
+    """The browser saw the camera at intermediate places, not only at the start and the end."""
+    seen = live_run["seen"]
+    assert len(seen) >= 3, seen
+
+
+def test_live_view_survives_a_dead_server(capsys):
+    scenario = load_scenario("experiment1").with_values(duration=0.5)
+    with LiveView(scenario, timeout=0.3) as live:
+        live.vis.window.server_proc.kill()
+        live.vis.window.server_proc.wait()
+        log = simulate(scenario, observer=live.show)
+        assert not live.alive
+    assert len(log["t"]) == 25  # the run finished
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith("pbvs-pin: warning: live view stopped")
+
+
+def test_run_meshcat_keeps_results_when_the_viewer_dies(tmp_path, monkeypatch, capsys):
+    toml = (scenario_dir() / "experiment1.toml").read_text().replace("30.0", "0.5", 1)
+    (tmp_path / "short.toml").write_text(toml)
+    monkeypatch.setattr(live_module, "SEND_TIMEOUT", 0.3)
+    enter = LiveView.__enter__
+
+    def enter_then_kill_server(self):
+        self.vis.window.server_proc.kill()
+        return enter(self)
+
+    monkeypatch.setattr(LiveView, "__enter__", enter_then_kill_server)
+    out = tmp_path / "out"
+    status = main(["run", str(tmp_path / "short.toml"), "--meshcat", "--out", str(out)])
+    captured = capsys.readouterr()
+    assert status == 0, captured.err
+    assert (out / "log.npz").is_file() and (out / "summary.json").is_file()
+    assert "live view: http://" in captured.out
+    warnings = [line for line in captured.err.splitlines() if "warning" in line]
+    assert len(warnings) == 1 and "live view stopped" in warnings[0], captured.err
+    assert "Traceback" not in captured.err
+
+
+# ---------------------------------------------------------------------- view_robot
+@pytest.mark.parametrize("name", ["pioneer_ur5", "urdf"])
+def test_view_robot_html_has_every_link_and_the_frustum(browser, tmp_path, capsys, name):
+    from conftest import URDF_DIR
+
+    from pbvs_pin.catalogue import build_robot
+
+    name = str(URDF_DIR / "pioneer_cyton.urdf") if name == "urdf" else name
+    html = tmp_path / "robot.html"
+    assert view_robot(name, html) == html
+    assert str(html) in capsys.readouterr().out
+    robot = build_robot(name)
+    model, visual = robot.model, robot.visual_model
+    paths = {g.name: f"meshcat/pbvs/robot/{g.name}" for g in visual.geometryObjects}
+    parts = [CAMERA + "/frustum", CAMERA + "/triad"]
+    page = Page(browser, html)
+    try:
+        page.wait_ready([*paths.values(), *parts], n_actions=0)
+        desc = page.page.evaluate(JS_DESCRIBE, [*paths.values(), *parts])
+        assert all(d["vertices"] > 0 for d in desc.values()), desc
+        assert desc[parts[0]]["type"] == "LineSegments"
+        now = page.world_poses([*paths.values(), CAMERA])
+        q = robot.home()
+        expected = geometry_placements(model, visual, q)
+        for geometry, path in paths.items():
+            np.testing.assert_allclose(now[path], expected[geometry], atol=POSE_TOL)
+        np.testing.assert_allclose(now[CAMERA], _camera_pose(robot, q).homogeneous, atol=POSE_TOL)
+        changed, _ = page.robot_pixel_change()
+        assert changed > 0.005
+        assert page.errors == []
+    finally:
+        page.page.close()
+
+
+def test_view_robot_serves_until_ctrl_c(monkeypatch, capsys):
+    opened, stopped = [], []
+    monkeypatch.setattr(live_module.webbrowser, "open", lambda url, new=0: opened.append(url))
+
+    def ctrl_c(seconds):
+        raise KeyboardInterrupt
+
+    # only the viewer's own clock: Ctrl-C arrives while it serves
+    clock = types.SimpleNamespace(sleep=ctrl_c, perf_counter=time.perf_counter)
+    monkeypatch.setattr(live_module, "time", clock)
+    stop = scene.stop_visualizer
+
+    def record_stop(vis):
+        stopped.append(vis)
+        stop(vis)
+
+    monkeypatch.setattr(scene, "stop_visualizer", record_stop)
+    assert view_robot("pioneer_cyton") is None
+    out = capsys.readouterr().out
+    assert opened and opened[0].startswith("http://") and opened[0] in out
+    # webbrowser.open returned a false value: the URL to open is printed
+    assert f"open {opened[0]} in one" in out
+    assert "stopped" in out
+    assert len(stopped) == 1 and stopped[0].window.server_proc.poll() is not None
+
+
+# ---------------------------------------------------------------------- no viewer at all
+def _server_dies(*args, **kwargs):
+    raise RuntimeError("the meshcat server process exited prematurely with exit code 1")
+
+
+@pytest.fixture(params=["server process", "Visualizer"])
+def no_meshcat_server(request, monkeypatch):
+    """No served viewer: the server subprocess dies, or ``meshcat.Visualizer`` itself raises."""
+    import meshcat
+    import meshcat.visualizer
+
+    if request.param == "Visualizer":
+        monkeypatch.setattr(meshcat, "Visualizer", _server_dies)
+    else:
+        monkeypatch.setattr(meshcat.visualizer, "start_zmq_server_as_subprocess", _server_dies)
+
+
+def test_unavailable_viewer_says_what_to_do_instead(no_meshcat_server):
+    with pytest.raises(ViewerUnavailable) as error:
+        view_robot("pioneer_cyton")
+    message = str(error.value)
+    assert isinstance(error.value, PbvsError)
+    assert "exited prematurely" in message
+    assert "pbvs-pin view pioneer_cyton --html FILE" in message
+    with pytest.raises(ViewerUnavailable, match="--html FILE") as error:
+        LiveView("experiment1")
+    assert "without --meshcat" in str(error.value)
+
+
+def test_cli_view_without_server_is_one_line_and_status_2(no_meshcat_server, capsys):
+    status = main(["view", "pioneer_cyton"])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert len(err.strip().splitlines()) == 1, err
+    assert err.startswith("pbvs-pin: error: Meshcat viewer unavailable")
+    assert "--html FILE" in err and "Traceback" not in err
+
+
+def test_cli_view_html_needs_no_server(monkeypatch, tmp_path, capsys):
+    import meshcat.visualizer
+
+    monkeypatch.setattr(meshcat.visualizer, "start_zmq_server_as_subprocess", _server_dies)
+    status = main(["view", "pioneer_cyton", "--html", str(tmp_path / "v.html")])
+    assert status == 0, capsys.readouterr().err
+    assert (tmp_path / "v.html").stat().st_size > 100_000
+
+
+def test_missing_server_program_is_a_viewer_error(monkeypatch):
+    """A real failure: the server subprocess cannot even be executed."""
+    monkeypatch.setattr(sys, "executable", "/nonexistent/python3")
+    with pytest.raises(ViewerUnavailable, match="could not start the meshcat server"):
+        scene.start_visualizer()
