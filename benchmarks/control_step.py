@@ -1,9 +1,12 @@
 """Benchmark: the control step against the Pinocchio calls it makes, and closed-loop speed.
 
+The control step timed is the one the simulation loop runs: :class:`FusedControlStep`
+(secondary objectives, eq. 3, eq. 34 and eq. 20 in one compiled call after its Pinocchio calls).
+
 Run: ``python benchmarks/control_step.py``. Prints, per robot, the median time of one full
 control step (kinematic controller, eq. 34, plus dynamic compensation, eq. 20) and of the
 Pinocchio calls that step makes (joint Jacobians, camera frame placement and Jacobian,
-CRBA, Coriolis matrix, gravity), both
+CRBA, nonlinear effects, gravity), both
 measured in this run, and their ratio; then the real-time factor of a closed-loop simulation
 with a 1 kHz controller on the reference robot. Medians over repeats: the machine is shared.
 """
@@ -16,7 +19,8 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from pbvs_pin.sim.loop import Perception, _control_step, build, simulate
+from pbvs_pin.control.fused import FusedControlStep
+from pbvs_pin.sim.loop import Perception, build, simulate
 from pbvs_pin.sim.scenario import load_scenario
 
 REPEATS = 7
@@ -44,10 +48,14 @@ def control_step_ratio(robot_name: str) -> tuple[float, float]:
     perception.take(setup.sensor.deliver(0.0))
     v = np.full(setup.robot.n, 0.05)
     dt = 1e-3
+    fused = FusedControlStep(
+        setup.model, setup.features, setup.xi_d, setup.controller, setup.compensator,
+        setup.objectives,
+    )  # fmt: skip
+    laser, target_velocity = np.array([np.inf, 0.0]), np.zeros(3)
 
     def step() -> None:
-        output, _ = _control_step(setup, perception, q, (np.inf, 0.0), 0.0, dt)
-        setup.compensator.step(q, v, output.u, dt)
+        fused.step(q, v, perception.measurement, target_velocity, laser, dt)
 
     model, data = setup.model.model, setup.model.data
     frame = setup.model.camera_frame_id
@@ -58,7 +66,7 @@ def control_step_ratio(robot_name: str) -> tuple[float, float]:
         pin.updateFramePlacement(model, data, frame)
         pin.getFrameJacobian(model, data, frame, pin.LOCAL)
         pin.crba(model, data, q)
-        pin.computeCoriolisMatrix(model, data, q, v_pin)
+        pin.nonLinearEffects(model, data, q, v_pin)
         pin.computeGeneralizedGravity(model, data, q)
 
     return _median_time(step), _median_time(pinocchio_calls)

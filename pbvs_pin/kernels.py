@@ -13,6 +13,73 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+# Small dense helpers: at these sizes (r <= 8, n <= 12) plain loops beat a BLAS/LAPACK call.
+
+
+@njit(cache=True)
+def _matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` for small matrices."""
+    out = np.zeros((a.shape[0], b.shape[1]))
+    for i in range(a.shape[0]):
+        for k in range(a.shape[1]):
+            aik = a[i, k]
+            if aik != 0.0:
+                for j in range(b.shape[1]):
+                    out[i, j] += aik * b[k, j]
+    return out
+
+
+@njit(cache=True)
+def _matvec(a: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``a @ x`` for a small matrix."""
+    out = np.zeros(a.shape[0])
+    for i in range(a.shape[0]):
+        total = 0.0
+        for k in range(a.shape[1]):
+            total += a[i, k] * x[k]
+        out[i] = total
+    return out
+
+
+@njit(cache=True)
+def _symmetric(upper: np.ndarray) -> np.ndarray:
+    """The full symmetric matrix from its upper triangle (``pin.crba`` fills only that)."""
+    full = upper.copy()
+    for i in range(full.shape[0]):
+        for j in range(i):
+            full[i, j] = full[j, i]
+    return full
+
+
+@njit(cache=True)
+def _cholesky_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve ``a x = b`` for a symmetric positive definite ``a`` (shape (r, r), b (r, m))."""
+    r = a.shape[0]
+    low = np.zeros((r, r))
+    for j in range(r):
+        total = a[j, j]
+        for k in range(j):
+            total -= low[j, k] * low[j, k]
+        low[j, j] = np.sqrt(total)
+        for i in range(j + 1, r):
+            total = a[i, j]
+            for k in range(j):
+                total -= low[i, k] * low[j, k]
+            low[i, j] = total / low[j, j]
+    x = b.copy()
+    for col in range(x.shape[1]):
+        for i in range(r):
+            total = x[i, col]
+            for k in range(i):
+                total -= low[i, k] * x[k, col]
+            x[i, col] = total / low[i, i]
+        for i in range(r - 1, -1, -1):
+            total = x[i, col]
+            for k in range(i + 1, r):
+                total -= low[k, i] * x[k, col]
+            x[i, col] = total / low[i, i]
+    return x
+
 
 @njit(cache=True)
 def point_jacobians(
@@ -95,7 +162,7 @@ def feature_jacobians(
         xi[a] = flat[rows[a]]
         selected_l[a] = interaction[rows[a]]
         selected_p[a] = position[rows[a]]
-    return xi, selected_l @ camera_jacobian, selected_p @ rotation_world_to_camera
+    return xi, _matmul(selected_l, camera_jacobian), _matmul(selected_p, rotation_world_to_camera)
 
 
 @njit(cache=True)
@@ -141,14 +208,14 @@ def damped_pseudo_inverse(
     Returns:
         ``J#`` (n, r), ``sigma_min`` of ``J W^-1/2``, whether it was damped.
     """
-    right = weight_inverse @ jacobian.T
-    gram = jacobian @ right
+    right = _matmul(weight_inverse, jacobian.T)
+    gram = _matmul(jacobian, right)
     sigma_min = np.sqrt(max(np.linalg.eigvalsh(gram)[0], 0.0))
     damped = sigma_min < threshold
     if damped:
         mu2 = max_damping * max_damping * (1.0 - (sigma_min / threshold) ** 2)
         gram = gram + mu2 * np.eye(gram.shape[0])
-    return np.linalg.solve(gram, right.T).T, sigma_min, damped
+    return _cholesky_solve(gram, right.T.copy()).T.copy(), sigma_min, damped
 
 
 @njit(cache=True)
@@ -204,14 +271,14 @@ def passivity_law(
     if not finite:
         return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0
     kc_error = k / (1.0 + np.abs(error)) * error
-    nu = jacobian.T @ kc_error
+    nu = _matvec(jacobian.T, kc_error)
     pinv, sigma_min, damped = damped_pseudo_inverse(
         jacobian, weight_inverse, damping[0], damping[1]
     )
-    feedforward = pinv @ (object_jacobian @ target_velocity)
+    feedforward = _matvec(pinv, _matvec(object_jacobian, target_velocity))
     shaped = k1 * np.tanh(k2 * secondary)
-    null_space = shaped - pinv @ (jacobian @ shaped)
-    feedback = pinv @ kc_error if pseudoinverse_feedback else nu
+    null_space = shaped - _matvec(pinv, _matvec(jacobian, shaped))
+    feedback = _matvec(pinv, kc_error) if pseudoinverse_feedback else nu
     u, factor = saturate(-feedback - feedforward + null_space, limits)
     if not np.all(np.isfinite(u)):
         return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0
@@ -222,7 +289,7 @@ def passivity_law(
 @njit(cache=True)
 def compensation_law(
     mass_upper: np.ndarray,
-    coriolis: np.ndarray,
+    bias: np.ndarray,
     gravity: np.ndarray,
     selection: np.ndarray,
     gain_inverse: np.ndarray,
@@ -233,6 +300,7 @@ def compensation_law(
     v: np.ndarray,
     u: np.ndarray,
     u_dot: np.ndarray,
+    limits: np.ndarray,
 ) -> tuple[np.ndarray, float]:
     r"""Eq. (20) on the velocity-reference model of eq. (1), from Pinocchio's terms.
 
@@ -243,8 +311,8 @@ def compensation_law(
 
     Args:
         mass_upper: CRBA mass matrix, upper triangle filled (``pin.crba``). Shape (nv, nv).
-        coriolis: Coriolis matrix at ``S v``. Shape (nv, nv).
-        gravity: Generalised gravity. Shape (nv,).
+        bias: ``C_rb(q, S v) S v + g_rb`` (``pin.nonLinearEffects``). Shape (nv,).
+        gravity: Generalised gravity ``g_rb``. Shape (nv,).
         selection: ``S``. Shape (nv, n).
         gain_inverse: ``1 / K_v``. Shape (n,).
         damping: ``D``. Shape (n,).
@@ -254,26 +322,28 @@ def compensation_law(
         v: Measured actuated velocity. Shape (n,).
         u: Kinematic command. Shape (n,).
         u_dot: Command derivative. Shape (n,).
+        limits: Velocity limits the low-level loops accept; ``v_ref`` is clipped to them.
+            Shape (n,).
 
     Returns:
         ``v_ref`` (n,) and ``V2 = |v - u|^2 / 2`` (eq. 22).
     """
     error = v - u
     storage = 0.5 * np.sum(error * error)
-    mass = np.triu(mass_upper) + np.triu(mass_upper, 1).T
-    mass_v = selection.T @ mass @ selection
-    coriolis_v = selection.T @ coriolis @ selection
-    gravity_v = gravity_weight * (selection.T @ gravity)
+    mass_v = _matmul(_matmul(selection.T, _symmetric(mass_upper)), selection)
+    # C_v v + (I - G) g_v = S^T bias - G S^T g
+    bias_v = _matvec(selection.T, bias) - (1.0 - gravity_weight) * _matvec(selection.T, gravity)
     acceleration = u_dot - k_d * error
-    inertial = mass_v @ acceleration + coriolis_v @ v + gravity_v + damping * v
+    inertial = _matvec(mass_v, acceleration) + bias_v + damping * v
     reference = gain_inverse * inertial + v
-    return np.where(rows, reference, u), storage
+    v_ref = np.where(rows, reference, u)
+    return np.minimum(np.maximum(v_ref, -limits), limits), storage
 
 
 @njit(cache=True)
 def velocity_loop_step(
     mass_upper: np.ndarray,
-    coriolis: np.ndarray,
+    bias: np.ndarray,
     gravity: np.ndarray,
     selection: np.ndarray,
     gains: np.ndarray,
@@ -289,8 +359,8 @@ def velocity_loop_step(
 
     Args:
         mass_upper: CRBA mass matrix, upper triangle filled. Shape (nv, nv).
-        coriolis: Coriolis matrix at ``S v``. Shape (nv, nv).
-        gravity: Generalised gravity. Shape (nv,).
+        bias: ``C_rb(q, S v) S v + g_rb`` (``pin.nonLinearEffects``). Shape (nv,).
+        gravity: Generalised gravity ``g_rb``. Shape (nv,).
         selection: ``S``. Shape (nv, n).
         gains: ``K_v``. Shape (n,).
         damping: ``D``. Shape (n,).
@@ -302,9 +372,172 @@ def velocity_loop_step(
     Returns:
         ``v_{k+1}``. Shape (n,).
     """
-    mass = np.triu(mass_upper) + np.triu(mass_upper, 1).T
-    mass_v = selection.T @ mass @ selection
+    mass_v = _matmul(_matmul(selection.T, _symmetric(mass_upper)), selection)
     lhs = mass_v + h * np.diag(gains + damping)
-    rhs = mass_v @ v + h * (gains * v_ref - selection.T @ (coriolis @ (selection @ v)))
-    rhs -= h * gravity_weight * (selection.T @ gravity)
-    return np.linalg.solve(lhs, rhs)
+    # C_v v + (I - G) g_v = S^T bias - G S^T g
+    bias_v = _matvec(selection.T, bias) - (1.0 - gravity_weight) * _matvec(selection.T, gravity)
+    rhs = _matvec(mass_v, v) + h * (gains * v_ref - bias_v)
+    return _cholesky_solve(lhs, rhs.reshape(-1, 1))[:, 0]
+
+
+@njit(cache=True)
+def arm_angles(q: np.ndarray, idx_q: np.ndarray, continuous: np.ndarray) -> np.ndarray:
+    """Arm joint positions from a configuration; continuous joints (cos, sin) give an angle.
+
+    Args:
+        q: Configuration. Shape (nq,).
+        idx_q: Index of each arm joint in ``q``. Shape (n_arm,).
+        continuous: Whether each joint is stored as (cos, sin). Shape (n_arm,).
+
+    Returns:
+        Shape (n_arm,) [rad or m].
+    """
+    angles = np.empty(idx_q.shape[0])
+    for i in range(idx_q.shape[0]):
+        j = idx_q[i]
+        angles[i] = np.arctan2(q[j + 1], q[j]) if continuous[i] else q[j]
+    return angles
+
+
+@njit(cache=True)
+def posture_term(arm: np.ndarray, target: np.ndarray, gain: float) -> np.ndarray:
+    r"""Eq. (19): ``f_i = k_Lambda (theta_id - theta_i)``. Shape (n_arm,)."""
+    return gain * (target - arm)
+
+
+@njit(cache=True)
+def joint_limit_term(
+    arm: np.ndarray, lower: np.ndarray, upper: np.ndarray, margin: float, gain: float
+) -> np.ndarray:
+    """Restoring rates within ``margin`` of a limit; infinite limits give 0. Shape (n_arm,)."""
+    above = np.maximum(arm - (upper - margin), 0.0)
+    below = np.minimum(arm - (lower + margin), 0.0)
+    return -gain * (above + below)
+
+
+@njit(cache=True)
+def obstacle_force(distance: float, angle: float, k_u: float, k_w: float, d0: float) -> np.ndarray:
+    r"""Fictitious force of eqs. (17)-(18) before the impedance, ``[F_u, F_w]``.
+
+    .. math:: F_u = k_{uobs} (d_0 - d)(\tfrac{\pi}{2} - |\alpha|),\quad
+              F_\omega = k_{\omega obs} (d_0 - d)\, \mathrm{sign}(\alpha)(\tfrac{\pi}{2} - |\alpha|)
+
+    zero when ``d >= d_0`` or nothing is seen (``d`` infinite).
+    """
+    force = np.zeros(2)
+    if np.isfinite(distance) and distance < d0:
+        reach = (d0 - distance) * (0.5 * np.pi - abs(angle))
+        force[0] = k_u * reach
+        force[1] = k_w * np.sign(angle) * reach
+    return force
+
+
+@njit(cache=True)
+def impedance_step(
+    velocity: np.ndarray, force: np.ndarray, mass: float, damping: float, dt: float
+) -> np.ndarray:
+    """Exact step of ``m du/dt + b u = F`` over ``dt`` with ``F`` held (the ``Z^-1`` of (17))."""
+    decay = np.exp(-damping / mass * dt)
+    return decay * velocity + (1.0 - decay) * force / damping
+
+
+@njit(cache=True)
+def fused_control_step(
+    frame_jacobian: np.ndarray,
+    rotation: np.ndarray,
+    mass_upper: np.ndarray,
+    bias: np.ndarray,
+    gravity: np.ndarray,
+    q: np.ndarray,
+    v: np.ndarray,
+    points: np.ndarray,
+    depths: np.ndarray,
+    target_velocity: np.ndarray,
+    laser: np.ndarray,
+    dt: float,
+    memory: np.ndarray,
+    selection: np.ndarray,
+    rows: np.ndarray,
+    xi_d: np.ndarray,
+    k: np.ndarray,
+    dof: np.ndarray,
+    weight_inverse: np.ndarray,
+    arm: np.ndarray,
+    arm_idx_q: np.ndarray,
+    arm_continuous: np.ndarray,
+    scalars: np.ndarray,
+) -> tuple:
+    """One whole control step in one call: eqs. (16)-(19), (3), (34) and (20).
+
+    It chains the kernels above exactly as the modular classes do (secondary objectives,
+    :func:`feature_jacobians`, :func:`passivity_law`, :func:`compensation_law`), so that the
+    1 kHz loop pays one call's overhead. :class:`pbvs_pin.control.fused.FusedControlStep`
+    packs the arguments.
+
+    Args:
+        frame_jacobian: Camera frame Jacobian, ``pin.LOCAL``. Shape (6, nv).
+        rotation: ``wRc``. Shape (3, 3).
+        mass_upper: ``pin.crba``. Shape (nv, nv).
+        bias: ``pin.nonLinearEffects`` at ``S v``. Shape (nv,).
+        gravity: ``pin.computeGeneralizedGravity``. Shape (nv,).
+        q: Configuration. Shape (nq,).
+        v: Actuated velocity. Shape (n,).
+        points: Measured image points [px]. Shape (k, 2).
+        depths: Their depths [m]. Shape (k,).
+        target_velocity: ``phat_dot`` [m/s]. Shape (3,).
+        laser: ``[d, alpha]`` of the nearest return. Shape (2,).
+        dt: Control period [s].
+        memory: Rows ``u_prev``, ``u_dot``, ``[has_prev, F_u state, F_w state, ...]``;
+            updated in place. Shape (3, n).
+        selection: ``S``. Shape (nv, n).
+        rows: Feature rows. Shape (r,).
+        xi_d: Desired features [px]. Shape (r,).
+        k: ``k_i``. Shape (r,).
+        dof: Rows ``k1, k2, limits, 1/K_v, D, I - G, compensated, K_D``. Shape (8, n).
+        weight_inverse: ``W^-1``. Shape (n, n).
+        arm: Rows ``theta_d, lower, upper``. Shape (3, n_arm).
+        arm_idx_q: Arm joints' indices in ``q``. Shape (n_arm,).
+        arm_continuous: Continuous arm joints. Shape (n_arm,).
+        scalars: ``focal, feature_scale, sigma_0, mu_max, pinv_feedback, tau_udot, n_base,
+            posture_on, k_Lambda, limits_on, limit_margin, limit_gain, obstacle_on, k_uobs,
+            k_wobs, d0, impedance_mass, impedance_damping``. Shape (18,).
+
+    Returns:
+        ``(valid, u, v_ref, nu, feedforward, null_space, storage, sigma_min, damped, factor,
+        v2, xi, J, J_o)`` with ``J``, ``J_o`` in pixels.
+    """
+    n = selection.shape[1]
+    n_base = int(scalars[6])
+    theta = arm_angles(q, arm_idx_q, arm_continuous)
+    secondary = np.zeros(n)
+    if scalars[7] > 0.0:
+        secondary[n_base:] += posture_term(theta, arm[0], scalars[8])
+    if scalars[9] > 0.0:
+        secondary[n_base:] += joint_limit_term(theta, arm[1], arm[2], scalars[10], scalars[11])
+    if scalars[12] > 0.0:
+        force = obstacle_force(laser[0], laser[1], scalars[13], scalars[14], scalars[15])
+        impedance = impedance_step(memory[2, 1:3], force, scalars[16], scalars[17], dt)
+        memory[2, 1:3] = impedance
+        if n_base >= 2:
+            secondary[0] -= impedance[0]
+            secondary[n_base - 1] += impedance[1]
+    xi, jacobian, object_jacobian = feature_jacobians(
+        points, depths, rows, scalars[0], _matmul(frame_jacobian, selection), rotation.T.copy()
+    )
+    scale = scalars[1]
+    damping = scalars[2:4].copy()
+    valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor = passivity_law(
+        (xi - xi_d) / scale, jacobian / scale, object_jacobian / scale, target_velocity,
+        secondary, k, dof[0], dof[1], weight_inverse, damping, dof[2], scalars[4] > 0.0,
+    )  # fmt: skip
+    if memory[2, 0] > 0.0 and dt > 0.0:
+        blend = dt / (scalars[5] + dt)
+        memory[1] = memory[1] + blend * ((u - memory[0]) / dt - memory[1])
+    memory[0] = u
+    memory[2, 0] = 1.0
+    v_ref, v2 = compensation_law(
+        mass_upper, bias, gravity, selection, dof[3], dof[4], dof[5], dof[6] > 0.0,
+        dof[7], v, u, memory[1].copy(), dof[2],
+    )  # fmt: skip
+    return (valid, u, v_ref, nu, feedforward, null_space, storage, sigma_min, damped, factor,
+            v2, xi, jacobian, object_jacobian)  # fmt: skip

@@ -57,10 +57,10 @@ class Plant:
         """
         model, data, selection = self.robot.model, self.robot.data, self.robot.selection
         mass = pin.crba(model, data, self.q)
-        coriolis = pin.computeCoriolisMatrix(model, data, self.q, selection @ self.v)
+        bias = pin.nonLinearEffects(model, data, self.q, selection @ self.v)
         gravity = pin.computeGeneralizedGravity(model, data, self.q)
         self.v = velocity_loop_step(
-            mass, coriolis, gravity, selection, self.loop.gains, self.loop.damping,
+            mass, bias, gravity, selection, self.loop.gains, self.loop.damping,
             self.gravity_weight, self.v, v_ref, self.dt,
         )  # fmt: skip
         self.q = pin.integrate(model, self.q, selection @ (self.v * self.dt))

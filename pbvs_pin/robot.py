@@ -31,6 +31,7 @@ from pbvs_pin.assembly import (
 from pbvs_pin.base import BaseAdapter, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.exceptions import FrameNotFound, GainError, NoMovableJoint, UrdfError
+from pbvs_pin.kernels import arm_angles
 from pbvs_pin.validation import as_array, as_se3
 
 DEFAULT_JOINT_SPEED = 1.0
@@ -92,6 +93,8 @@ class MobileManipulator:
         velocity_limits: Largest magnitude of each actuated velocity, SI units. Shape (n,).
         source: File or name the robot was built from.
         home_arm: Arm posture [rad or m] of :meth:`home`; zeros unless a recipe sets it.
+        arm_q_indices: Index in ``q`` of each arm joint. Shape (n_arm,).
+        arm_continuous: Whether each arm joint is continuous (stored as cos, sin). Shape (n_arm,).
     """
 
     def __init__(
@@ -129,8 +132,8 @@ class MobileManipulator:
                 source, f"no movable joint between the base and camera frame {camera_frame!r}"
             )
         self.arm_joint_names = tuple(self.model.names[j] for j in arm_joints)
-        self._arm_idx_q = np.array([self.model.joints[j].idx_q for j in arm_joints])
-        self._arm_continuous = np.array([self.model.joints[j].nq == 2 for j in arm_joints])
+        self.arm_q_indices = np.array([self.model.joints[j].idx_q for j in arm_joints])
+        self.arm_continuous = np.array([self.model.joints[j].nq == 2 for j in arm_joints])
         n_arm = self.model.nv - n_root
         self.selection = np.zeros((self.model.nv, base.selection().shape[1] + n_arm))
         self.selection[:n_root, : base.selection().shape[1]] = base.selection()
@@ -324,11 +327,7 @@ class MobileManipulator:
 
         Continuous joints (stored as cos/sin) give their angle.
         """
-        q = np.asarray(q, dtype=float)
-        angles = q[self._arm_idx_q]
-        continuous = self._arm_continuous
-        angles[continuous] = np.arctan2(q[self._arm_idx_q[continuous] + 1], angles[continuous])
-        return angles
+        return arm_angles(np.asarray(q, dtype=float), self.arm_q_indices, self.arm_continuous)
 
     def with_arm_positions(self, q: npt.ArrayLike, arm: npt.ArrayLike) -> np.ndarray:
         """Copy of ``q`` with the arm joints set to ``arm`` [rad or m]. Shape (nq,)."""

@@ -98,7 +98,8 @@ class DynamicCompensator:
             dt: Time since the previous call [s].
 
         Returns:
-            ``v_ref`` (shape (n,)), and ``V2 = |v - u|^2 / 2`` of eq. (22).
+            ``v_ref`` clipped to the velocity limits (shape (n,)), and ``V2 = |v - u|^2 / 2``
+            of eq. (22).
         """
         if self.previous_u is not None and dt > 0:
             blend = dt / (self.tau + dt)
@@ -106,12 +107,14 @@ class DynamicCompensator:
         self.previous_u = u.copy()
         if not self.any_row:
             error = v - u
-            return u.copy(), 0.5 * float(error @ error)
+            limits = self.robot.velocity_limits
+            return np.clip(u, -limits, limits), 0.5 * float(error @ error)
         model, data, selection = self.robot.model, self.robot.data, self.robot.selection
         mass = pin.crba(model, data, q)
-        coriolis = pin.computeCoriolisMatrix(model, data, q, selection @ v)
+        bias = pin.nonLinearEffects(model, data, q, selection @ v)
         gravity = pin.computeGeneralizedGravity(model, data, q)
         return compensation_law(
-            mass, coriolis, gravity, selection, self.gain_inverse, self.loop.damping,
+            mass, bias, gravity, selection, self.gain_inverse, self.loop.damping,
             self.loop.gravity_weight, self.rows, self.k_d, v, u, self.u_dot,
+            self.robot.velocity_limits,
         )  # fmt: skip

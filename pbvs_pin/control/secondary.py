@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.kernels import impedance_step, joint_limit_term, obstacle_force, posture_term
 
 
 @dataclass(frozen=True)
@@ -84,16 +85,12 @@ class ObstacleAvoidance(SecondaryObjective):
 
     def force(self, distance: float, angle: float) -> np.ndarray:
         """Fictitious force ``[F_u, F_w]`` of eqs. (17)-(18) before the impedance."""
-        if not np.isfinite(distance) or distance >= self.d0:
-            return np.zeros(2)
-        reach = (self.d0 - distance) * (0.5 * np.pi - abs(angle))
-        return np.array([self.k_u * reach, self.k_w * np.sign(angle) * reach])
+        return obstacle_force(distance, angle, self.k_u, self.k_w, self.d0)
 
     def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
         """``[-u_obs, omega_obs, 0, ...]``; the impedance state advances by ``state.dt``."""
         force = self.force(state.obstacle_distance, state.obstacle_angle)
-        decay = np.exp(-self.damping / self.mass * state.dt)
-        self.velocity = decay * self.velocity + (1.0 - decay) * force / self.damping
+        self.velocity = impedance_step(self.velocity, force, self.mass, self.damping, state.dt)
         out = np.zeros(n)
         if n_base >= 2:
             out[0], out[n_base - 1] = -self.velocity[0], self.velocity[1]
@@ -121,7 +118,7 @@ class ArmPosture(SecondaryObjective):
     def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
         """``[0, ..., k (theta_d - theta)]``."""
         out = np.zeros(n)
-        out[n_base:] = self.gain * (self.target - state.arm_positions)
+        out[n_base:] = posture_term(state.arm_positions, self.target, self.gain)
         return out
 
 
@@ -150,11 +147,10 @@ class JointLimitAvoidance(SecondaryObjective):
 
     def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
         """Restoring rates near the limits."""
-        theta = state.arm_positions
-        above = np.maximum(theta - (self.upper - self.margin), 0.0)
-        below = np.minimum(theta - (self.lower + self.margin), 0.0)
         out = np.zeros(n)
-        out[n_base:] = -self.gain * (above + below)  # infinite limits give 0, never NaN
+        out[n_base:] = joint_limit_term(
+            state.arm_positions, self.lower, self.upper, self.margin, self.gain
+        )
         return out
 
 

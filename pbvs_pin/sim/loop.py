@@ -18,6 +18,7 @@ from scipy.optimize import least_squares
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import build_robot
 from pbvs_pin.control.compensation import Compensation, DynamicCompensator
+from pbvs_pin.control.fused import FusedControlStep
 from pbvs_pin.control.ibvs import ClassicIbvs
 from pbvs_pin.control.kinematic import PassivityController, ServoGains
 from pbvs_pin.control.secondary import (
@@ -355,6 +356,13 @@ def simulate(
     perception = Perception(setup)
     footprint = footprint_points(scenario["platform"]["length"], scenario["platform"]["width"])
     laser_reading = (float("inf"), 0.0)
+    laser_array = np.array(laser_reading)
+    fused = None
+    if FusedControlStep.supports(setup.controller, setup.objectives):
+        fused = FusedControlStep(
+            setup.model, setup.features, setup.xi_d, setup.controller, setup.compensator,
+            setup.objectives,
+        )  # fmt: skip
     started = wallclock.perf_counter()
     bar = _progress(steps, progress, setup.scenario.name)
     for step in range(steps):
@@ -369,10 +377,23 @@ def simulate(
             perception.take(frame)
         if setup.obstacles and step % laser_every == 0:
             laser_reading = _laser(setup, plant.q)
-        output, jacobians = _control_step(setup, perception, plant.q, laser_reading, t, control_dt)
-        v_ref, v2 = setup.compensator.step(plant.q, plant.v, output.u, control_dt)
-        v_ref = np.clip(v_ref, -setup.robot.velocity_limits, setup.robot.velocity_limits)
+            laser_array = np.array(laser_reading)
+        seen = perception.measurement is not None and not perception.lost
+        if fused is not None and seen:
+            _, v_ref, v2 = fused.step(
+                plant.q, plant.v, perception.measurement, perception.velocity(t), laser_array,
+                control_dt,
+            )  # fmt: skip
+        else:
+            if fused is not None:
+                fused.memory[2, 0] = 0.0  # the command derivative restarts after a loss
+            output, jacobians = _control_step(
+                setup, perception, plant.q, laser_reading, t, control_dt
+            )
+            v_ref, v2 = setup.compensator.step(plant.q, plant.v, output.u, control_dt)
         if step % log_every == 0:
+            if fused is not None and seen:
+                output, jacobians = fused.output()
             base = setup.robot.base_pose(plant.q)
             yaw = float(np.arctan2(base.rotation[1, 0], base.rotation[0, 0]))
             recorder.record(
