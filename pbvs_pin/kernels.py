@@ -352,6 +352,8 @@ def velocity_loop_step(
     v: np.ndarray,
     v_ref: np.ndarray,
     h: float,
+    v_pin_out: np.ndarray,
+    displacement_out: np.ndarray,
 ) -> np.ndarray:
     r"""One semi-implicit step of eq. (1) times ``K_v``: the plant's velocity update.
 
@@ -368,6 +370,8 @@ def velocity_loop_step(
         v: Actuated velocity. Shape (n,).
         v_ref: Velocity reference. Shape (n,).
         h: Step [s].
+        v_pin_out: Written: ``S v_{k+1}``. Shape (nv,).
+        displacement_out: Written: ``S v_{k+1} h`` for ``pin.integrate``. Shape (nv,).
 
     Returns:
         ``v_{k+1}``. Shape (n,).
@@ -377,7 +381,10 @@ def velocity_loop_step(
     # C_v v + (I - G) g_v = S^T bias - G S^T g
     bias_v = _matvec(selection.T, bias) - (1.0 - gravity_weight) * _matvec(selection.T, gravity)
     rhs = _matvec(mass_v, v) + h * (gains * v_ref - bias_v)
-    return _cholesky_solve(lhs, rhs.reshape(-1, 1))[:, 0]
+    v_next = _cholesky_solve(lhs, rhs.reshape(-1, 1))[:, 0]
+    v_pin_out[:] = _matvec(selection, v_next)
+    displacement_out[:] = h * v_pin_out
+    return v_next
 
 
 @njit(cache=True)
@@ -466,7 +473,10 @@ def fused_control_step(
     arm_idx_q: np.ndarray,
     arm_continuous: np.ndarray,
     scalars: np.ndarray,
-) -> tuple:
+    out: np.ndarray,
+    jacobian_out: np.ndarray,
+    object_jacobian_out: np.ndarray,
+) -> None:
     """One whole control step in one call: eqs. (16)-(19), (3), (34) and (20).
 
     It chains the kernels above exactly as the modular classes do (secondary objectives,
@@ -501,10 +511,14 @@ def fused_control_step(
         scalars: ``focal, feature_scale, sigma_0, mu_max, pinv_feedback, tau_udot, n_base,
             posture_on, k_Lambda, limits_on, limit_margin, limit_gain, obstacle_on, k_uobs,
             k_wobs, d0, impedance_mass, impedance_damping``. Shape (18,).
+        out: Written: rows ``u, v_ref, nu, feedforward, null_space`` (first n entries),
+            ``[valid, storage, sigma_min, damped, factor, V2]``, ``xi`` (first r entries).
+            Shape (7, w) with ``w >= max(n, r, 6)``.
+        jacobian_out: Written: ``J`` [px]. Shape (r, n).
+        object_jacobian_out: Written: ``J_o`` [px/m]. Shape (r, 3).
 
-    Returns:
-        ``(valid, u, v_ref, nu, feedforward, null_space, storage, sigma_min, damped, factor,
-        v2, xi, J, J_o)`` with ``J``, ``J_o`` in pixels.
+    Writing into preallocated arrays instead of returning them saves boxing a dozen arrays
+    at every step.
     """
     n = selection.shape[1]
     n_base = int(scalars[6])
@@ -539,5 +553,17 @@ def fused_control_step(
         mass_upper, bias, gravity, selection, dof[3], dof[4], dof[5], dof[6] > 0.0,
         dof[7], v, u, memory[1].copy(), dof[2],
     )  # fmt: skip
-    return (valid, u, v_ref, nu, feedforward, null_space, storage, sigma_min, damped, factor,
-            v2, xi, jacobian, object_jacobian)  # fmt: skip
+    out[0, :n] = u
+    out[1, :n] = v_ref
+    out[2, :n] = nu
+    out[3, :n] = feedforward
+    out[4, :n] = null_space
+    out[5, 0] = 1.0 if valid else 0.0
+    out[5, 1] = storage
+    out[5, 2] = sigma_min
+    out[5, 3] = 1.0 if damped else 0.0
+    out[5, 4] = factor
+    out[5, 5] = v2
+    out[6, : xi.shape[0]] = xi
+    jacobian_out[:, :] = jacobian
+    object_jacobian_out[:, :] = object_jacobian

@@ -46,8 +46,20 @@ class Plant:
             raise GainError(f"plant step: expected 0 < dt <= 0.05 s, got {dt}")
         self.robot, self.loop, self.dt = robot, loop, dt
         self.q = robot.check_configuration(q).copy()
-        self.v = np.zeros(robot.n)
         self.gravity_weight = loop.gravity_weight
+        self._v_pin = np.zeros(robot.model.nv)
+        self._displacement = np.zeros(robot.model.nv)
+        self.v = np.zeros(robot.n)
+
+    @property
+    def v(self) -> np.ndarray:
+        """Actuated velocity. Shape (n,)."""
+        return self._v
+
+    @v.setter
+    def v(self, value: np.ndarray) -> None:
+        self._v = np.asarray(value, dtype=float)
+        self._v_pin = self.robot.selection @ self._v
 
     def step(self, v_ref: np.ndarray) -> None:
         """Advance by one step ``dt`` under the velocity reference ``v_ref`` (shape (n,)).
@@ -57,10 +69,10 @@ class Plant:
         """
         model, data, selection = self.robot.model, self.robot.data, self.robot.selection
         mass = pin.crba(model, data, self.q)
-        bias = pin.nonLinearEffects(model, data, self.q, selection @ self.v)
+        bias = pin.nonLinearEffects(model, data, self.q, self._v_pin)
         gravity = pin.computeGeneralizedGravity(model, data, self.q)
-        self.v = velocity_loop_step(
+        self._v = velocity_loop_step(
             mass, bias, gravity, selection, self.loop.gains, self.loop.damping,
-            self.gravity_weight, self.v, v_ref, self.dt,
+            self.gravity_weight, self._v, v_ref, self.dt, self._v_pin, self._displacement,
         )  # fmt: skip
-        self.q = pin.integrate(model, self.q, selection @ (self.v * self.dt))
+        self.q = pin.integrate(model, self.q, self._displacement)

@@ -96,7 +96,10 @@ class FusedControlStep:
                 )  # fmt: skip
         self.scalars = scalars
         self.memory = np.zeros((3, max(n, 3)))
-        self.last: tuple | None = None
+        self.out = np.zeros((7, max(n, r, 6)))
+        self.jacobian = np.zeros((r, n))
+        self.object_jacobian = np.zeros((r, 3))
+        self.n, self.r = n, r
 
     @staticmethod
     def supports(controller: PassivityController, objectives: list[SecondaryObjective]) -> bool:
@@ -129,7 +132,8 @@ class FusedControlStep:
             dt: Control period [s].
 
         Returns:
-            ``u`` (n,), ``v_ref`` (n,), ``V2``. Zero ``u`` when an input is not finite.
+            ``u`` (n,), ``v_ref`` (n,), ``V2``: views into a buffer that the next step
+            overwrites. Zero ``u`` when an input is not finite.
         """
         robot = self.model
         model, data, frame = robot.model, robot.data, robot.camera_frame_id
@@ -139,23 +143,23 @@ class FusedControlStep:
         mass = pin.crba(model, data, q)
         bias = pin.nonLinearEffects(model, data, q, robot.selection @ v)
         gravity = pin.computeGeneralizedGravity(model, data, q)
-        self.last = fused_control_step(
+        out = self.out
+        fused_control_step(
             jacobian, rotation, mass, bias, gravity, q, v, measurement.points,
             measurement.depths, target_velocity, laser, dt, self.memory, robot.selection,
             self.rows, self.xi_d, self.k, self.dof, self.weight_inverse, self.arm,
-            robot.arm_q_indices, robot.arm_continuous, self.scalars,
+            robot.arm_q_indices, robot.arm_continuous, self.scalars, out, self.jacobian,
+            self.object_jacobian,
         )  # fmt: skip
-        return self.last[1], self.last[2], self.last[10]
+        return out[0, : self.n], out[1, : self.n], out[5, 5]
 
     def output(self) -> tuple[ControlOutput, tuple[np.ndarray, np.ndarray]]:
         """The last step's diagnostics, as the modular controller reports them."""
-        valid, u, _, nu, feedforward, null_space, storage, sigma_min, damped, factor = self.last[
-            :10
-        ]
-        xi, jacobian, object_jacobian = self.last[11:]
+        out, n = self.out.copy(), self.n
+        valid, storage, sigma_min, damped, factor, _ = out[5, :6]
         output = ControlOutput(
-            u=u, error=xi - self.xi_d, storage=storage, nu=nu, feedforward=feedforward,
-            null_space=null_space, min_singular_value=sigma_min, damped=damped,
-            saturated=factor < 1.0, scale=factor, valid=valid,
+            u=out[0, :n], error=out[6, : self.r] - self.xi_d, storage=storage, nu=out[2, :n],
+            feedforward=out[3, :n], null_space=out[4, :n], min_singular_value=sigma_min,
+            damped=bool(damped), saturated=factor < 1.0, scale=factor, valid=bool(valid),
         )  # fmt: skip
-        return output, (jacobian, object_jacobian)
+        return output, (self.jacobian.copy(), self.object_jacobian.copy())
