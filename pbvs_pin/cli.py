@@ -81,7 +81,9 @@ def _analyze(args: argparse.Namespace) -> None:
     """Passivity and L2-gain figures of a run."""
     from pbvs_pin.analysis import analyze_run
 
-    result = analyze_run(Path(args.log), args.epsilon, Path(args.out) if args.out else None)
+    result = analyze_run(
+        Path(args.log), args.epsilon, Path(args.out) if args.out else None, t1=args.t1
+    )
     print(json.dumps(result, indent=2))
 
 
@@ -89,7 +91,14 @@ def _sweep(args: argparse.Namespace) -> None:
     """Run a grid or random sample of scenarios."""
     from pbvs_pin.sweep import run_sweep
 
-    table = run_sweep(Path(args.spec), Path(args.out), args.scheduler, args.workers)
+    table = run_sweep(
+        Path(args.spec),
+        Path(args.out),
+        args.scheduler,
+        args.workers,
+        max_runs=args.max_runs,
+        retry_failed=args.retry_failed,
+    )
     print(f"results table written to {table}")
 
 
@@ -120,12 +129,15 @@ def build_parser() -> argparse.ArgumentParser:
     analyze.add_argument("log", help="a run's log.npz (or its folder)")
     analyze.add_argument("--epsilon", type=float, default=0.5, help="epsilon of eq. (31)")
     analyze.add_argument("--out", help="folder for the analysis report and plots")
+    analyze.add_argument("--t1", type=float, help="start [s] of the ultimate-bound window")
     analyze.set_defaults(handler=_analyze)
     sweep = commands.add_parser("sweep", help="run a grid or random sample of scenarios")
     sweep.add_argument("spec", help="sweep specification (TOML)")
     sweep.add_argument("--out", default="results/sweep", help="output folder")
     sweep.add_argument("--scheduler", help="Dask scheduler address (default: local processes)")
     sweep.add_argument("--workers", type=int, help="local worker processes")
+    sweep.add_argument("--max-runs", type=int, help="stop after this many new runs")
+    sweep.add_argument("--retry-failed", action="store_true", help="run failed rows again")
     sweep.set_defaults(handler=_sweep)
     return parser
 

@@ -71,10 +71,13 @@ def reproduce(out: Path, robots: tuple[str, ...] = OTHER_ROBOTS, baseline: bool 
     Returns:
         Path of the markdown report.
     """
-    reference, others, classic = [], [], []
+    from pbvs_pin.analysis import analyze_run
+
+    reference, others, classic, analyses = [], [], [], []
     for name in PAPER_CLAIMS:
         folder = out / name
         reference.append(run_scenario(name, folder, folder / "replay.html")[1])
+        analyses.append(analyze_run(folder, out=folder / "analysis"))
         print(f"{name}: max |error| over the last 5 s = "
               f"{reference[-1]['max_abs_error_final_window_px']:.2f} px")  # fmt: skip
         for robot in robots:
@@ -84,8 +87,48 @@ def reproduce(out: Path, robots: tuple[str, ...] = OTHER_ROBOTS, baseline: bool 
             scenario = load_scenario(name).with_values(**{"controller.law": "ibvs"})
             classic.append(run_scenario(scenario, out / "ibvs" / name)[1])
     path = out / "report.md"
-    path.write_text(_report(reference, others, classic))
+    path.write_text(_report(reference, others, classic) + _analysis_section(analyses))
     return path
+
+
+def _analysis_section(analyses: list[dict[str, Any]]) -> str:
+    """Section 4 of the paper on each reference run: prediction beside measurement."""
+    lines = [
+        "",
+        "## Robustness and L2 gain (paper §4), eps = 0.5",
+        "",
+        "| experiment | lambda | gamma_inf after t1 | (31) holds | t1 [s] | (39) predicted "
+        "[px] | measured sup after t1 [px] | (42) measured ratio / varsigma^2 | (9) lhs >= rhs |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for result in analyses:
+        bound, gain, passive = result["bound_39"], result["l2_gain_42"], result["passivity_9"]
+        predicted = bound.get("predicted_px")
+        ratio = gain.get("measured_ratio")
+        lines.append(
+            f"| {result['scenario']} | {_fmt(result['lambda'])} | {_fmt(result['gamma_inf'])} | "
+            f"{result['condition_31']['holds']} | {_fmt(result['t1_s'])} | {_fmt(predicted)} | "
+            f"{_fmt(bound.get('measured_sup_px'))} | {_fmt(ratio)} / "
+            f"{_fmt(gain.get('varsigma_squared'))} | {_fmt(passive['lhs_integral_nu_input'])} "
+            f">= {_fmt(passive['rhs_minus_V1_0'])}: {passive['holds']} |"
+        )
+    lines += [
+        "",
+        "Each run's `analysis/analysis.md` has the details and plots. The bound (39) only "
+        "accounts for the target-velocity estimation error (gamma); camera sampling, noise and "
+        "velocity-tracking error are outside it, which is why it is loose. Inequality (9) "
+        "holds with equality in continuous time; on a converged run its margin V1(T) is about "
+        "zero, so sampling residuals decide its sign.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _fmt(value: Any) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
 
 
 def _row(summary: dict[str, Any]) -> str:
