@@ -23,23 +23,34 @@ from pbvs_pin.control.fused import FusedControlStep
 from pbvs_pin.sim.loop import Perception, build, simulate
 from pbvs_pin.sim.scenario import load_scenario
 
-REPEATS = 7
-CALLS = 300
+REPEATS = 15
+CALLS = 500
 
 
-def _median_time(function, calls: int = CALLS, repeats: int = REPEATS) -> float:
-    """Median over repeats of the mean time of one call [s]."""
-    samples = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        for _ in range(calls):
-            function()
-        samples.append((time.perf_counter() - start) / calls)
-    return statistics.median(samples)
+def _mean_time(function, calls: int = CALLS) -> float:
+    """Mean time of one call over ``calls`` calls [s]."""
+    start = time.perf_counter()
+    for _ in range(calls):
+        function()
+    return (time.perf_counter() - start) / calls
 
 
-def control_step_ratio(robot_name: str) -> tuple[float, float]:
-    """Median control-step time and median time of its Pinocchio calls [s]."""
+def _interleaved(first, second, repeats: int = REPEATS) -> tuple[float, float, float]:
+    """Medians of both functions' times and of their ratio, timed alternately.
+
+    Alternating keeps both under the same load of this shared machine.
+    """
+    first(), second()
+    pairs = [(_mean_time(first), _mean_time(second)) for _ in range(repeats)]
+    return (
+        statistics.median(a for a, _ in pairs),
+        statistics.median(b for _, b in pairs),
+        statistics.median(a / b for a, b in pairs),
+    )
+
+
+def control_step_ratio(robot_name: str) -> tuple[float, float, float]:
+    """Median control-step time, median time of its Pinocchio calls [s], median ratio."""
     scenario = load_scenario("experiment1").with_values(**{"robot.name": robot_name})
     setup = build(scenario)
     perception = Perception(setup)
@@ -69,27 +80,29 @@ def control_step_ratio(robot_name: str) -> tuple[float, float]:
         pin.nonLinearEffects(model, data, q, v_pin)
         pin.computeGeneralizedGravity(model, data, q)
 
-    return _median_time(step), _median_time(pinocchio_calls)
+    return _interleaved(step, pinocchio_calls)
 
 
-def closed_loop_real_time_factor(duration: float = 10.0) -> float:
-    """Simulated seconds per wall-clock second of the loop, 1 kHz controller, reference robot.
+def closed_loop_real_time_factor(duration: float = 10.0, repeats: int = 3) -> float:
+    """Median simulated seconds per wall-clock second of the loop, 1 kHz controller.
 
-    The setup (loading the robot, maximising manipulability) is not counted.
+    On the reference robot, over ``repeats`` runs. The setup (loading the robot, maximising manipulability) is not counted.
     """
     scenario = load_scenario("experiment1").with_values(
         **{"controller.rate": 1000.0, "duration": duration}
     )
-    return duration / simulate(scenario).meta["wall_time"]
+    return statistics.median(
+        duration / simulate(scenario).meta["wall_time"] for _ in range(repeats)
+    )
 
 
 def main() -> None:
     """Print the measurements."""
     print(f"{'robot':<16}{'n':>3}{'control step [us]':>20}{'pinocchio calls [us]':>23}{'ratio':>8}")
     for name in ("pioneer_cyton", "pioneer_xarm7"):
-        step, calls = control_step_ratio(name)
+        step, calls, ratio = control_step_ratio(name)
         n = build(load_scenario("experiment1").with_values(**{"robot.name": name})).robot.n
-        print(f"{name:<16}{n:>3}{step * 1e6:>20.1f}{calls * 1e6:>23.1f}{step / calls:>8.2f}")
+        print(f"{name:<16}{n:>3}{step * 1e6:>20.1f}{calls * 1e6:>23.1f}{ratio:>8.2f}")
     factor = closed_loop_real_time_factor()
     print(f"closed loop, 1 kHz controller, pioneer_cyton: {factor:.1f}x real time")
 

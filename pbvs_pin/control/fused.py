@@ -141,7 +141,7 @@ class FusedControlStep:
         rotation = pin.updateFramePlacement(model, data, frame).rotation
         jacobian = pin.getFrameJacobian(model, data, frame, pin.LOCAL)
         mass = pin.crba(model, data, q)
-        bias = pin.nonLinearEffects(model, data, q, robot.selection @ v)
+        bias = pin.nonLinearEffects(model, data, q, robot.selection.dot(v))
         gravity = pin.computeGeneralizedGravity(model, data, q)
         out = self.out
         fused_control_step(
