@@ -86,7 +86,8 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float]:
 def closed_loop_real_time_factor(duration: float = 10.0, repeats: int = 3) -> float:
     """Median simulated seconds per wall-clock second of the loop, 1 kHz controller.
 
-    On the reference robot, over ``repeats`` runs. The setup (loading the robot, maximising manipulability) is not counted.
+    On the reference robot, over ``repeats`` runs. The setup (loading the robot, maximising
+    manipulability) is not counted.
     """
     scenario = load_scenario("experiment1").with_values(
         **{"controller.rate": 1000.0, "duration": duration}
