@@ -42,13 +42,10 @@ class ClassicIbvs(PassivityController):
         secondary: npt.ArrayLike,
     ) -> ControlOutput:
         """The classic law; ``secondary`` is ignored. Same diagnostics as the passivity law."""
-        error_px = np.asarray(error_px, dtype=float)
-        jacobian_px = np.asarray(jacobian_px, dtype=float)
-        object_jacobian_px = np.asarray(object_jacobian_px, dtype=float)
-        target_velocity = np.asarray(target_velocity, dtype=float)
-        secondary = np.asarray(secondary, dtype=float)
+        error_px, jacobian_px, object_jacobian_px, target_velocity, secondary = self._inputs(
+            error_px, jacobian_px, object_jacobian_px, target_velocity, secondary
+        )
         r = error_px.shape[0]
-        self._check_shapes(r, jacobian_px, object_jacobian_px, target_velocity, secondary)
         inputs = (error_px, jacobian_px, object_jacobian_px, target_velocity)
         if not all(np.all(np.isfinite(x)) for x in inputs):
             return self.zero_output(r)

@@ -214,13 +214,10 @@ class PassivityController:
         Raises:
             ShapeError: If a shape is inconsistent.
         """
-        error_px = np.asarray(error_px, dtype=float)
-        jacobian_px = np.asarray(jacobian_px, dtype=float)
-        object_jacobian_px = np.asarray(object_jacobian_px, dtype=float)
-        target_velocity = np.asarray(target_velocity, dtype=float)
-        secondary = np.asarray(secondary, dtype=float)
+        error_px, jacobian_px, object_jacobian_px, target_velocity, secondary = self._inputs(
+            error_px, jacobian_px, object_jacobian_px, target_velocity, secondary
+        )
         r = error_px.shape[0]
-        self._check_shapes(r, jacobian_px, object_jacobian_px, target_velocity, secondary)
         scale = self.gains.feature_scale
         valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor = passivity_law(
             error_px / scale,
@@ -273,15 +270,15 @@ class PassivityController:
             valid=False,
         )
 
-    def _check_shapes(
-        self,
-        r: int,
-        jacobian: np.ndarray,
-        object_jacobian: np.ndarray,
-        target_velocity: np.ndarray,
-        secondary: np.ndarray,
-    ) -> None:
-        """Raise ShapeError on any inconsistent shape."""
+    def _inputs(self, *arrays: npt.ArrayLike) -> list[np.ndarray]:
+        """``(error, J, J_o, target_velocity, Lambda)`` as float arrays, shapes checked.
+
+        Raises:
+            ShapeError: If a shape is inconsistent.
+        """
+        converted = [np.asarray(array, dtype=float) for array in arrays]
+        error, jacobian, object_jacobian, target_velocity, secondary = converted
+        r = error.shape[0]
         for name, got, want in (
             ("jacobian", jacobian.shape, (r, self.n)),
             ("object_jacobian", object_jacobian.shape, (r, 3)),
@@ -290,3 +287,4 @@ class PassivityController:
         ):
             if got != want:
                 raise ShapeError(name, want, got)
+        return converted
