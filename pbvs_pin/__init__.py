@@ -22,6 +22,7 @@ from pbvs_pin.exceptions import (
     ScenarioError,
     ShapeError,
     UrdfError,
+    ViewerUnavailable,
 )
 from pbvs_pin.features import FeatureSet, ImageMeasurement, ImagePointFeatures, TwoSphereFeatures
 from pbvs_pin.manipulability import (
@@ -57,6 +58,7 @@ __all__ = [
     "TwoSphereFeatures",
     "UrdfError",
     "VelocityLoop",
+    "ViewerUnavailable",
     "arm_manipulability",
     "load_robot",
     "manipulability",
