@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
 
 from pbvs_pin.exceptions import GainError, PointBehindCamera
 from pbvs_pin.kernels import point_jacobians
@@ -68,6 +69,32 @@ class CameraIntrinsics:
         if z <= MIN_DEPTH:
             raise PointBehindCamera(float(z))
         return -self.focal_px / z * np.array([x, y])
+
+    def project_world(
+        self, camera_pose: pin.SE3, points_world: np.ndarray, min_depth: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray]:
+        r"""Eq. (2) for world points seen from ``world_T_camera``, for many points at once.
+
+        .. math:: p_c = {}^c R_w (p_w - {}^w t_c),\qquad \xi = -\frac{f}{z} [x, y]
+
+        No depth check: the caller decides what a point behind the camera means.
+
+        Args:
+            camera_pose: ``world_T_camera``.
+            points_world: Points in the world [m]. Shape (k, 3).
+            min_depth: Smallest depth used as divisor [m] (0: none), to keep a solver finite.
+
+        Returns:
+            Image points ``[u, v]`` [px], shape (k, 2), and depths [m], shape (k,).
+        """
+        in_camera = (np.asarray(points_world, dtype=float) - camera_pose.translation) @ (
+            camera_pose.rotation
+        )
+        depths = in_camera[:, 2].copy()
+        divisor = np.maximum(depths, min_depth) if min_depth > 0 else depths
+        with np.errstate(divide="ignore", invalid="ignore"):
+            image = -self.focal_px * in_camera[:, :2] / divisor[:, None]
+        return image, depths
 
     def project_jacobian(self, point_in_camera: npt.ArrayLike) -> np.ndarray:
         r"""Derivative of :meth:`project` with respect to the point.

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from pbvs_pin.camera import CameraIntrinsics
+from pbvs_pin.camera import MIN_DEPTH, CameraIntrinsics
 from pbvs_pin.exceptions import GainError, PointBehindCamera, ShapeError
 from pbvs_pin.kernels import feature_jacobians, point_jacobians
 from pbvs_pin.validation import as_array
@@ -149,10 +149,10 @@ class FeatureSet(abc.ABC):
             PointBehindCamera: If a point is not in front of the camera.
         """
         points = as_array("points_world", points_world, (self.n_points, 3))
-        pose = robot.camera_pose(q)
-        in_camera = (points - pose.translation) @ pose.rotation
-        image = np.array([robot.camera.project(p) for p in in_camera])
-        return ImageMeasurement(image, in_camera[:, 2].copy())
+        image, depths = robot.camera.project_world(robot.camera_pose(q), points)
+        if np.any(depths <= MIN_DEPTH):
+            raise PointBehindCamera(float(depths.min()))
+        return ImageMeasurement(image, depths)
 
     def visible(
         self, robot: MobileManipulator, q: npt.ArrayLike, points_world: npt.ArrayLike

@@ -78,11 +78,6 @@ class DynamicCompensator:
         self.previous_u: np.ndarray | None = None
         self.u_dot = np.zeros(robot.n)
 
-    def reset(self) -> None:
-        """Forget the previous command (the derivative restarts from zero)."""
-        self.previous_u = None
-        self.u_dot = np.zeros(self.robot.n)
-
     def step(
         self, q: np.ndarray, v: np.ndarray, u: np.ndarray, dt: float
     ) -> tuple[np.ndarray, float]:

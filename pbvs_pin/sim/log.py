@@ -145,11 +145,12 @@ class RunRecorder:
 
 def _true_features(setup: Setup, t: float) -> np.ndarray:
     """Features of the true target seen from the true robot (NaN when behind the camera)."""
-    pose = setup.robot.camera_pose(setup.plant.q)
-    in_camera = (setup.target.centres(t) - pose.translation) @ pose.rotation
-    if np.any(in_camera[:, 2] <= 1e-3):
+    camera = setup.robot.camera
+    image, depths = camera.project_world(
+        setup.robot.camera_pose(setup.plant.q), setup.target.centres(t)
+    )
+    if np.any(depths <= 1e-3):
         return np.full(setup.features.size, np.nan)
-    image = -setup.robot.camera.focal_px * in_camera[:, :2] / in_camera[:, 2:]
     return image.reshape(-1)[setup.features.rows]
 
 

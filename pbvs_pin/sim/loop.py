@@ -85,9 +85,7 @@ def solve_target_start(
 
     def residual(top: np.ndarray) -> np.ndarray:
         centres = np.array([top, top - [0.0, 0.0, separation]])
-        in_camera = (centres - pose.translation) @ pose.rotation
-        depth = np.maximum(in_camera[:, 2], 1e-3)
-        image = -robot.camera.focal_px * in_camera[:, :2] / depth[:, None]
+        image, _ = robot.camera.project_world(pose, centres, min_depth=1e-3)
         return image.reshape(-1)[features.rows] - xi0
 
     return least_squares(residual, guess, xtol=1e-12, ftol=1e-12).x
@@ -260,11 +258,9 @@ def _check_start_visible(
     xi0: np.ndarray,
 ) -> None:
     """ScenarioError unless both spheres are in front of the camera, in the image, at xi0."""
-    pose = robot.camera_pose(q0)
-    in_camera = (target.centres(0.0) - pose.translation) @ pose.rotation
-    if np.any(in_camera[:, 2] <= 0.05):
+    image, depths = robot.camera.project_world(robot.camera_pose(q0), target.centres(0.0))
+    if np.any(depths <= 0.05):
         raise scenario.error("target.xi0", "the target would be behind the camera at the start")
-    image = -robot.camera.focal_px * in_camera[:, :2] / in_camera[:, 2:]
     if not robot.camera.in_image(image) or not np.allclose(
         image.reshape(-1)[features.rows], xi0, atol=0.5
     ):

@@ -85,13 +85,12 @@ class CameraSensor:
             q: Encoder configuration. Shape (nq,).
         """
         self.next_capture += self.period
-        in_camera = (centres - camera_pose.translation) @ camera_pose.rotation
-        depths = in_camera[:, 2]
+        image, depths = self.camera.project_world(camera_pose, centres)
         visible = bool(np.all(depths > MIN_DEPTH))
         points = np.full((2, 2), np.nan)
         diameters = np.full(2, np.nan)
         if visible:
-            points = -self.camera.focal_px * in_camera[:, :2] / depths[:, None]
+            points = image
             diameters = self.camera.focal_px * self.diameter / depths
             points = points + self.noise * self.rng.standard_normal((2, 2))
             diameters = np.maximum(diameters + self.noise * self.rng.standard_normal(2), 1.0)
