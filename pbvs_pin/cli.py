@@ -53,8 +53,8 @@ def _run(args: argparse.Namespace) -> None:
     if args.meshcat:
         from pbvs_pin.viz.live import LiveView
 
-        with LiveView(args.scenario) as live:
-            print(f"live view: {live.url}")
+        with LiveView(args.scenario, speed=args.speed) as live:
+            print(f"live view: {live.url} (playing at {args.speed:g}x real time)")
             summary = run_scenario(args.scenario, out, html, observer=live.show)[1]
     else:
         summary = run_scenario(args.scenario, out, html)[1]
@@ -102,6 +102,17 @@ def _sweep(args: argparse.Namespace) -> None:
     print(f"results table written to {table}")
 
 
+def _positive_float(text: str) -> float:
+    """An argparse type: a positive finite number."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (np.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every subcommand."""
     parser = argparse.ArgumentParser(
@@ -117,6 +128,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default="results/run", help="output folder")
     run.add_argument("--html", help="also write a standalone HTML replay to this file")
     run.add_argument("--meshcat", action="store_true", help="open a live Meshcat view")
+    run.add_argument(
+        "--speed",
+        type=_positive_float,
+        default=1.0,
+        help="with --meshcat: simulated seconds shown per second (default 1: real time)",
+    )
     run.set_defaults(handler=_run)
     reproduce = commands.add_parser("reproduce", help="run the paper's four experiments")
     reproduce.add_argument("--out", default="results", help="output folder")

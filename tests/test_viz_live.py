@@ -35,6 +35,7 @@ SPHERES = ["meshcat/pbvs/targets/sphere_0", "meshcat/pbvs/targets/sphere_1"]
 CAMERA = "meshcat/pbvs/camera"
 CURRENT = ["meshcat/pbvs/camera/image/current/0", "meshcat/pbvs/camera/image/current/1"]
 TRAILS = ["meshcat/pbvs/trail_platform", "meshcat/pbvs/trail_target"]
+SPEED = 2.0  # simulated seconds per wall-clock second in the live run
 
 
 JS_WATCH_CAMERA = """() => {
@@ -72,10 +73,10 @@ def _camera_pose(robot, q) -> pin.SE3:
 
 @pytest.fixture(scope="module")
 def live_run(browser):
-    """Two seconds of experiment 1 shown live, with a browser watching from the start."""
+    """Two seconds of experiment 1 played at 2x real time, a browser watching from the start."""
     scenario = load_scenario("experiment1").with_values(duration=2.0)
     snapshots = []
-    with LiveView(scenario) as live:
+    with LiveView(scenario, speed=SPEED) as live:
         assert live.url.startswith("http://")
         paths = _geometry_paths(live.robot)
         page = Page(browser, live.url)
@@ -88,7 +89,9 @@ def live_run(browser):
             snapshots.append(snapshot)
             live.show(snapshot)
 
+        wall = time.monotonic()
         log = simulate(scenario, observer=observer)
+        wall = time.monotonic() - wall
         assert live.flush()
         stats = live.stats()
         static_html = live.static_html()
@@ -112,6 +115,7 @@ def live_run(browser):
             "start": start,
             "stats": stats,
             "static_html": static_html,
+            "wall": wall,
         }
         page.page.close()
 
@@ -172,9 +176,20 @@ def test_live_server_scene_and_cost(live_run):
 
 
 def test_live_page_is_updated_during_the_run(live_run):
-    """The browser saw the camera at intermediate places, not only at the start and the end."""
+    """The run is paced, and the browser saw the camera at many intermediate places."""
+    duration = 2.0
+    # paced: the last snapshot (t = 1.98 s) is shown no earlier than 1.98 / SPEED after the first
+    assert live_run["wall"] >= (duration - 0.02) / SPEED - 0.02, live_run["wall"]
+    # at MAX_RATE updates per second over about a second, a watching browser sees well over 10
     seen = live_run["seen"]
-    assert len(seen) >= 3, seen
+    assert len(seen) >= 10, seen
+    assert live_run["stats"].frames >= 10, live_run["stats"]
+
+
+def test_live_view_rejects_a_bad_speed():
+    for speed in (0.0, -1.0, float("nan"), "fast"):
+        with pytest.raises(PbvsError, match="speed: expected a positive number"):
+            LiveView("experiment1", speed=speed)
 
 
 def test_live_view_survives_a_dead_server(capsys):
@@ -210,6 +225,16 @@ def test_run_meshcat_keeps_results_when_the_viewer_dies(tmp_path, monkeypatch, c
     warnings = [line for line in captured.err.splitlines() if "warning" in line]
     assert len(warnings) == 1 and "live view stopped" in warnings[0], captured.err
     assert "Traceback" not in captured.err
+
+
+def test_run_meshcat_rejects_a_bad_speed_without_a_traceback(tmp_path, capsys):
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as exit_info:
+        main(["run", "experiment1", "--meshcat", "--speed", "0", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert exit_info.value.code != 0
+    assert "--speed: expected a positive number, got '0'" in err, err
+    assert "Traceback" not in err and not out.exists()
 
 
 # ---------------------------------------------------------------------- view_robot

@@ -26,7 +26,7 @@ import numpy as np
 
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import build_robot
-from pbvs_pin.exceptions import PbvsError, ViewerUnavailable
+from pbvs_pin.exceptions import GainError, PbvsError, ViewerUnavailable
 from pbvs_pin.features import TwoSphereFeatures
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.loop import Snapshot, solve_target_start
@@ -126,6 +126,7 @@ class LiveView:
         scenario: str | Path | Scenario,
         timeout: float | None = None,
         trail_every: int = TRAIL_EVERY,
+        speed: float | None = None,
     ) -> None:
         """Start a meshcat server and draw the run's scene at its start.
 
@@ -134,8 +135,11 @@ class LiveView:
             timeout: Longest wait for the server to take one command [s];
                 :data:`SEND_TIMEOUT` by default.
             trail_every: Snapshots between two redraws of the trails.
+            speed: Simulated seconds shown per wall-clock second: 1.0 plays the run in real
+                time, 2.0 twice as fast; ``None`` lets the simulation run as fast as it can.
 
         Raises:
+            GainError: If ``speed`` is not a positive number.
             ScenarioError: If the scenario cannot be loaded.
             RobotNotFound: If its robot is unknown.
             ViewerUnavailable: If the meshcat server cannot be started or stops answering
@@ -154,6 +158,8 @@ class LiveView:
         )
         q0, centres0 = _start(self.scenario, self.robot)
         timeout = SEND_TIMEOUT if timeout is None else float(timeout)
+        self._speed = _check_speed(speed)
+        self._wall_start: float | None = None
         self._trail_every = max(1, int(trail_every))
         self.vis: meshcat.Visualizer = scene.start_visualizer(timeout=timeout, advice=LIVE_ADVICE)
         try:
@@ -214,6 +220,17 @@ class LiveView:
         if sent:
             self._frames += 1
             self._frame_time += elapsed
+        self._keep_pace(snapshot.t, started)
+
+    def _keep_pace(self, t: float, now: float) -> None:
+        """Sleep until the wall clock reaches simulated time ``t`` at the chosen speed."""
+        if self._speed is None:
+            return
+        if self._wall_start is None:
+            self._wall_start = now - t / self._speed
+        wait = self._wall_start + t / self._speed - time.perf_counter()
+        if wait > 0.0:
+            time.sleep(wait)
 
     def flush(self) -> bool:
         """Send the newest snapshot and the trails if they are not on the server yet.
@@ -290,6 +307,26 @@ class LiveView:
             "the run continues and its results are still written",
             file=sys.stderr,
         )
+
+
+def _check_speed(speed: float | None) -> float | None:
+    """``speed`` as a positive float, or None.
+
+    Raises:
+        GainError: If ``speed`` is not a positive finite number.
+    """
+    if speed is None:
+        return None
+    try:
+        value = float(speed)
+    except (TypeError, ValueError):
+        value = float("nan")
+    if not (np.isfinite(value) and value > 0.0):
+        raise GainError(
+            f"speed: expected a positive number of simulated seconds per second, got {speed!r}",
+            field="speed",
+        )
+    return value
 
 
 def _extend(trail: list[np.ndarray], point: np.ndarray) -> None:
