@@ -13,6 +13,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+ROUNDOFF_FLOOR = 1e-12
+"""Smallest eigenvalue of the regularised ``J W^-1 J^T``, relative to its trace."""
+
 # Small dense helpers: at these sizes (r <= 8, n <= 12) plain loops beat a BLAS/LAPACK call.
 
 
@@ -79,6 +82,44 @@ def _cholesky_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                 total -= low[k, i] * x[k, col]
             x[i, col] = total / low[i, i]
     return x
+
+
+@njit(cache=True)
+def _smallest_eigenvalue(a: np.ndarray) -> float:
+    """Smallest eigenvalue of a symmetric matrix; closed form up to 3 x 3 (Smith 1961).
+
+    For 3 x 3, the eigenvalues are ``q + 2 p cos(phi + 2 pi j / 3)`` with ``q = tr(a) / 3``,
+    ``p = |a - q I|_F / sqrt(6)`` and ``cos(3 phi) = det((a - q I) / p) / 2``. Larger
+    matrices go to LAPACK.
+    """
+    r = a.shape[0]
+    if r == 1:
+        return a[0, 0]
+    if r == 2:
+        half_gap = 0.5 * (a[0, 0] - a[1, 1])
+        return 0.5 * (a[0, 0] + a[1, 1]) - np.sqrt(half_gap * half_gap + a[0, 1] * a[0, 1])
+    if r > 3:
+        return np.linalg.eigvalsh(a)[0]
+    off = a[0, 1] * a[0, 1] + a[0, 2] * a[0, 2] + a[1, 2] * a[1, 2]
+    q = (a[0, 0] + a[1, 1] + a[2, 2]) / 3.0
+    d0, d1, d2 = a[0, 0] - q, a[1, 1] - q, a[2, 2] - q
+    p = np.sqrt((d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * off) / 6.0)
+    if p == 0.0:
+        return q
+    b01, b02, b12 = a[0, 1] / p, a[0, 2] / p, a[1, 2] / p
+    b0, b1, b2 = d0 / p, d1 / p, d2 / p
+    det = b0 * (b1 * b2 - b12 * b12) - b01 * (b01 * b2 - b12 * b02) + b02 * (b01 * b12 - b1 * b02)
+    phi = np.arccos(min(max(0.5 * det, -1.0), 1.0)) / 3.0
+    return q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
+
+
+@njit(cache=True)
+def _all_finite(a: np.ndarray) -> bool:
+    """Whether every entry of ``a`` is finite (no temporary arrays)."""
+    for x in a.flat:
+        if not np.isfinite(x):
+            return False
+    return True
 
 
 @njit(cache=True)
@@ -199,6 +240,10 @@ def damped_pseudo_inverse(
               \mu^2 = \mu_{max}^2 \left(1 - (\sigma_{min}/\sigma_0)^2\right)
               \text{ if } \sigma_{min} < \sigma_0 \text{ else } 0
 
+    If that leaves ``J W^-1 J^T + mu^2 I`` with an eigenvalue below :data:`ROUNDOFF_FLOOR`
+    times its trace (``J`` singular to round-off and a tiny ``sigma_0``), ``mu^2`` is raised
+    to that floor, so that no division by zero can happen.
+
     Args:
         jacobian: ``J``. Shape (r, n).
         weight_inverse: ``W^-1``. Shape (n, n).
@@ -210,10 +255,15 @@ def damped_pseudo_inverse(
     """
     right = _matmul(weight_inverse, jacobian.T)
     gram = _matmul(jacobian, right)
-    sigma_min = np.sqrt(max(np.linalg.eigvalsh(gram)[0], 0.0))
+    smallest = _smallest_eigenvalue(gram)
+    sigma_min = np.sqrt(max(smallest, 0.0))
     damped = sigma_min < threshold
-    if damped:
-        mu2 = max_damping * max_damping * (1.0 - (sigma_min / threshold) ** 2)
+    mu2 = max_damping * max_damping * (1.0 - (sigma_min / threshold) ** 2) if damped else 0.0
+    # a J singular to round-off with a tiny threshold: keep the Cholesky factor real
+    floor = ROUNDOFF_FLOOR * np.trace(gram)
+    if smallest + mu2 < floor:
+        mu2 = floor - min(smallest, 0.0)
+    if mu2 > 0.0:
         gram = gram + mu2 * np.eye(gram.shape[0])
     return _cholesky_solve(gram, right.T.copy()).T.copy(), sigma_min, damped
 
@@ -262,11 +312,11 @@ def passivity_law(
     n = secondary.shape[0]
     zero = np.zeros(n)
     finite = (
-        np.all(np.isfinite(error))
-        and np.all(np.isfinite(jacobian))
-        and np.all(np.isfinite(object_jacobian))
-        and np.all(np.isfinite(target_velocity))
-        and np.all(np.isfinite(secondary))
+        _all_finite(error)
+        and _all_finite(jacobian)
+        and _all_finite(object_jacobian)
+        and _all_finite(target_velocity)
+        and _all_finite(secondary)
     )
     if not finite:
         return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0
@@ -280,7 +330,7 @@ def passivity_law(
     null_space = shaped - _matvec(pinv, _matvec(jacobian, shaped))
     feedback = _matvec(pinv, kc_error) if pseudoinverse_feedback else nu
     u, factor = saturate(-feedback - feedforward + null_space, limits)
-    if not np.all(np.isfinite(u)):
+    if not _all_finite(u):
         return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0
     storage = storage_function(error, k)
     return True, u, nu, feedforward, null_space, storage, sigma_min, damped, factor
@@ -448,6 +498,107 @@ def impedance_step(
     return decay * velocity + (1.0 - decay) * force / damping
 
 
+# The fused step's packed arguments. Calling a compiled function from Python costs about
+# 0.1 us per argument and about 0.7 us per array returned, so the 1 kHz step passes its constant
+# data in one float and one integer array and writes its results into one preallocated buffer.
+# The layouts are defined here only; ``FusedControlStep`` fills them through these views.
+
+SIZE_FIELDS = 4
+"""``indices`` starts with ``n, r, nv, n_arm``; then ``rows, arm_idx_q, arm_continuous``."""
+
+
+@njit(cache=True)
+def _sizes(indices: np.ndarray) -> tuple[int, int, int, int]:
+    return indices[0], indices[1], indices[2], indices[3]
+
+
+@njit(cache=True)
+def parameter_size(indices: np.ndarray) -> int:
+    """Length of the float parameter array of :func:`fused_control_step`."""
+    n, r, nv, n_arm = _sizes(indices)
+    return 2 * r + 8 * n + n * n + 3 * n_arm + SCALARS + nv * n
+
+
+@njit(cache=True)
+def state_size(indices: np.ndarray) -> int:
+    """Length of the state-and-output buffer of :func:`fused_control_step`."""
+    n, r, _, _ = _sizes(indices)
+    return 3 * max(n, 3) + 7 * max(n, r, 6) + r * n + r * 3
+
+
+SCALARS = 18
+"""Entries of the ``scalars`` parameter block (see :func:`_control_step`)."""
+
+
+@njit(cache=True)
+def parameter_views(params: np.ndarray, indices: np.ndarray) -> tuple:
+    """Views of the constant floats in ``params``.
+
+    In this order:
+
+    - ``xi_d``: desired features [px], (r,);
+    - ``k``: ``k_i``, (r,);
+    - ``dof``: rows ``k1, k2, limits, 1/K_v, D, I - G, compensated, K_D``, (8, n);
+    - ``weight_inverse``: ``W^-1``, (n, n);
+    - ``arm``: rows ``theta_d, lower, upper``, (3, n_arm);
+    - ``scalars``: ``focal, feature_scale, sigma_0, mu_max, pinv_feedback, tau_udot, n_base,
+      posture_on, k_Lambda, limits_on, limit_margin, limit_gain, obstacle_on, k_uobs, k_wobs,
+      d0, impedance_mass, impedance_damping``, (18,);
+    - ``selection``: ``S``, (nv, n).
+    """
+    n, r, nv, n_arm = _sizes(indices)
+    a = 0
+    xi_d = params[a : a + r]
+    a += r
+    k = params[a : a + r]
+    a += r
+    dof = params[a : a + 8 * n].reshape((8, n))
+    a += 8 * n
+    weight_inverse = params[a : a + n * n].reshape((n, n))
+    a += n * n
+    arm = params[a : a + 3 * n_arm].reshape((3, n_arm))
+    a += 3 * n_arm
+    scalars = params[a : a + SCALARS]
+    a += SCALARS
+    selection = params[a : a + nv * n].reshape((nv, n))
+    return xi_d, k, dof, weight_inverse, arm, scalars, selection
+
+
+@njit(cache=True)
+def index_views(indices: np.ndarray) -> tuple:
+    """Views of the constant integers in ``indices``.
+
+    Feature ``rows`` (r,), the arm joints' indices in ``q`` (n_arm,), and whether each is
+    continuous (n_arm,).
+    """
+    _, r, _, n_arm = _sizes(indices)
+    a = SIZE_FIELDS
+    return indices[a : a + r], indices[a + r : a + r + n_arm], indices[a + r + n_arm :]
+
+
+@njit(cache=True)
+def state_views(state: np.ndarray, indices: np.ndarray) -> tuple:
+    """Views of the memory and outputs in ``state``.
+
+    In this order:
+
+    - ``memory``: rows ``u_prev``, ``u_dot``, ``[has_prev, F_u state, F_w state, ...]``,
+      (3, max(n, 3));
+    - ``out``: rows ``u, v_ref, nu, feedforward, null_space`` (first n entries),
+      ``[valid, storage, sigma_min, damped, factor, V2]``, ``xi`` (first r entries),
+      (7, max(n, r, 6));
+    - ``J`` [px], (r, n), and ``J_o`` [px/m], (r, 3).
+    """
+    n, r, _, _ = _sizes(indices)
+    m, w = max(n, 3), max(n, r, 6)
+    memory = state[: 3 * m].reshape((3, m))
+    out = state[3 * m : 3 * m + 7 * w].reshape((7, w))
+    a = 3 * m + 7 * w
+    jacobian = state[a : a + r * n].reshape((r, n))
+    object_jacobian = state[a + r * n : a + r * n + 3 * r].reshape((r, 3))
+    return memory, out, jacobian, object_jacobian
+
+
 @njit(cache=True)
 def fused_control_step(
     frame_jacobian: np.ndarray,
@@ -462,27 +613,15 @@ def fused_control_step(
     target_velocity: np.ndarray,
     laser: np.ndarray,
     dt: float,
-    memory: np.ndarray,
-    selection: np.ndarray,
-    rows: np.ndarray,
-    xi_d: np.ndarray,
-    k: np.ndarray,
-    dof: np.ndarray,
-    weight_inverse: np.ndarray,
-    arm: np.ndarray,
-    arm_idx_q: np.ndarray,
-    arm_continuous: np.ndarray,
-    scalars: np.ndarray,
-    out: np.ndarray,
-    jacobian_out: np.ndarray,
-    object_jacobian_out: np.ndarray,
+    params: np.ndarray,
+    indices: np.ndarray,
+    state: np.ndarray,
 ) -> None:
     """One whole control step in one call: eqs. (16)-(19), (3), (34) and (20).
 
     It chains the kernels above exactly as the modular classes do (secondary objectives,
-    :func:`feature_jacobians`, :func:`passivity_law`, :func:`compensation_law`), so that the
-    1 kHz loop pays one call's overhead. :class:`pbvs_pin.control.fused.FusedControlStep`
-    packs the arguments.
+    :func:`feature_jacobians`, :func:`passivity_law`, :func:`compensation_law`);
+    :class:`pbvs_pin.control.fused.FusedControlStep` packs the arguments.
 
     Args:
         frame_jacobian: Camera frame Jacobian, ``pin.LOCAL``. Shape (6, nv).
@@ -497,29 +636,13 @@ def fused_control_step(
         target_velocity: ``phat_dot`` [m/s]. Shape (3,).
         laser: ``[d, alpha]`` of the nearest return. Shape (2,).
         dt: Control period [s].
-        memory: Rows ``u_prev``, ``u_dot``, ``[has_prev, F_u state, F_w state, ...]``;
-            updated in place. Shape (3, n).
-        selection: ``S``. Shape (nv, n).
-        rows: Feature rows. Shape (r,).
-        xi_d: Desired features [px]. Shape (r,).
-        k: ``k_i``. Shape (r,).
-        dof: Rows ``k1, k2, limits, 1/K_v, D, I - G, compensated, K_D``. Shape (8, n).
-        weight_inverse: ``W^-1``. Shape (n, n).
-        arm: Rows ``theta_d, lower, upper``. Shape (3, n_arm).
-        arm_idx_q: Arm joints' indices in ``q``. Shape (n_arm,).
-        arm_continuous: Continuous arm joints. Shape (n_arm,).
-        scalars: ``focal, feature_scale, sigma_0, mu_max, pinv_feedback, tau_udot, n_base,
-            posture_on, k_Lambda, limits_on, limit_margin, limit_gain, obstacle_on, k_uobs,
-            k_wobs, d0, impedance_mass, impedance_damping``. Shape (18,).
-        out: Written: rows ``u, v_ref, nu, feedforward, null_space`` (first n entries),
-            ``[valid, storage, sigma_min, damped, factor, V2]``, ``xi`` (first r entries).
-            Shape (7, w) with ``w >= max(n, r, 6)``.
-        jacobian_out: Written: ``J`` [px]. Shape (r, n).
-        object_jacobian_out: Written: ``J_o`` [px/m]. Shape (r, 3).
-
-    Writing into preallocated arrays instead of returning them saves boxing a dozen arrays
-    at every step.
+        params: Constant floats, laid out by :func:`parameter_views`.
+        indices: Sizes and constant integers, laid out by :func:`index_views`.
+        state: Memory and outputs, laid out by :func:`state_views`; updated in place.
     """
+    xi_d, k, dof, weight_inverse, arm, scalars, selection = parameter_views(params, indices)
+    rows, arm_idx_q, arm_continuous = index_views(indices)
+    memory, out, jacobian_out, object_jacobian_out = state_views(state, indices)
     n = selection.shape[1]
     n_base = int(scalars[6])
     theta = arm_angles(q, arm_idx_q, arm_continuous)

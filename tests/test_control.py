@@ -275,6 +275,31 @@ def test_near_singular_jacobian_is_damped_and_bounded(gap):
     assert np.linalg.norm(unlimited.u) <= bound
 
 
+@pytest.mark.parametrize("rows", [1, 2, 3, 4, 6])
+def test_smallest_singular_value_matches_svd_for_every_feature_count(rows):
+    """sigma_min of J W^-1/2 (closed form up to r = 3, LAPACK above) against NumPy's SVD.
+
+    Random weights W, scales over five decades, and exactly or nearly rank-deficient J.
+    """
+    rng = np.random.default_rng(100 + rows)
+    n = 7
+    for trial in range(200):
+        jacobian = rng.standard_normal((rows, n)) * 10.0 ** rng.uniform(-2, 3)
+        if rows > 1 and trial % 3 == 0:
+            jacobian[-1] = jacobian[0] * (1.0 + [0.0, 1e-9, 1e-4][trial % 9 // 3])
+        weights, weight = _weights("full", n, rng)
+        gains = _gains(n, rng, weights, damping_threshold=1e-12)
+        controller = PassivityController(gains, np.full(n, 1e9))
+        pinv, sigma_min, _ = controller.pseudo_inverse(jacobian)
+        assert np.all(np.isfinite(pinv)), trial  # even when J is singular to round-off
+        root = np.linalg.cholesky(np.linalg.inv(weight))  # W^-1 = L L^T
+        singular = np.linalg.svd(jacobian @ root, compute_uv=False)
+        # lambda_min(J W^-1 J^T) is exact to ~1e-15 |J W^-1 J^T|; its square root then has
+        # an absolute error of at most sqrt(1e-14 |.|) near zero
+        tolerance = 1e-9 * singular[0] + np.sqrt(1e-14) * singular[0]
+        assert sigma_min == pytest.approx(singular[-1], abs=tolerance), trial
+
+
 def test_well_conditioned_jacobian_is_not_damped():
     controller = PassivityController(ServoGains(), NO_LIMITS)
     jacobian = np.hstack([np.eye(3), np.zeros((3, 2))])

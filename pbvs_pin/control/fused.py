@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
+from pbvs_pin import kernels
 from pbvs_pin.control.compensation import DynamicCompensator
 from pbvs_pin.control.ibvs import ClassicIbvs
 from pbvs_pin.control.kinematic import ControlOutput, PassivityController
@@ -22,7 +23,8 @@ from pbvs_pin.control.secondary import (
     ObstacleAvoidance,
     SecondaryObjective,
 )
-from pbvs_pin.kernels import fused_control_step
+
+LOCAL = pin.LOCAL
 
 if TYPE_CHECKING:
     from pbvs_pin.features import FeatureSet, ImageMeasurement
@@ -52,27 +54,30 @@ class FusedControlStep:
     ) -> None:
         self.model = model
         n, r = model.n, features.size
-        gains = controller.gains
-        loop = compensator.loop
-        self.rows = np.asarray(features.rows, dtype=np.int64)
-        self.xi_d = np.asarray(xi_d, dtype=float)
-        self.k = controller.feature_gains(r)
-        self.dof = np.vstack(
+        n_arm = model.n_arm
+        self.indices = np.concatenate(
             [
-                controller.k1,
-                controller.k2,
-                controller.velocity_limits,
-                1.0 / loop.gains,
-                loop.damping,
-                loop.gravity_weight,
-                compensator.rows.astype(float),
-                compensator.k_d,
+                [n, r, model.model.nv, n_arm],
+                features.rows,
+                model.arm_q_indices,
+                model.arm_continuous,
             ]
+        ).astype(np.int64)
+        self.params = np.zeros(kernels.parameter_size(self.indices))
+        desired, k, dof, weight_inverse, arm, scalars, selection = kernels.parameter_views(
+            self.params, self.indices
         )
-        self.weight_inverse = controller.weight_inverse
-        self.arm = np.zeros((3, model.n_arm))
-        self.arm[1], self.arm[2] = model.arm_position_limits()
-        scalars = np.zeros(18)
+        desired[:] = xi_d
+        k[:] = controller.feature_gains(r)
+        loop = compensator.loop
+        dof[:] = (
+            controller.k1, controller.k2, controller.velocity_limits, 1.0 / loop.gains,
+            loop.damping, loop.gravity_weight, compensator.rows, compensator.k_d,
+        )  # fmt: skip
+        weight_inverse[:] = controller.weight_inverse
+        arm[1], arm[2] = model.arm_position_limits()
+        selection[:] = model.selection
+        gains = controller.gains
         scalars[:7] = (
             model.camera.focal_px,
             gains.feature_scale,
@@ -84,22 +89,23 @@ class FusedControlStep:
         )
         for objective in objectives:
             if isinstance(objective, ArmPosture):
-                self.arm[0] = objective.target
+                arm[0] = objective.target
                 scalars[7:9] = 1.0, objective.gain
             elif isinstance(objective, JointLimitAvoidance):
-                self.arm[1], self.arm[2] = objective.lower, objective.upper
+                arm[1], arm[2] = objective.lower, objective.upper
                 scalars[9:12] = 1.0, objective.margin, objective.gain
             elif isinstance(objective, ObstacleAvoidance):
                 scalars[12:18] = (
                     1.0, objective.k_u, objective.k_w, objective.d0, objective.mass,
                     objective.damping,
                 )  # fmt: skip
-        self.scalars = scalars
-        self.memory = np.zeros((3, max(n, 3)))
-        self.out = np.zeros((7, max(n, r, 6)))
-        self.jacobian = np.zeros((r, n))
-        self.object_jacobian = np.zeros((r, 3))
+        self.xi_d = desired
+        self.state = np.zeros(kernels.state_size(self.indices))
+        self.memory, self.out, self.jacobian, self.object_jacobian = kernels.state_views(
+            self.state, self.indices
+        )
         self.n, self.r = n, r
+        self._u, self._v_ref = self.out[0, :n], self.out[1, :n]
 
     @staticmethod
     def supports(controller: PassivityController, objectives: list[SecondaryObjective]) -> bool:
@@ -139,19 +145,15 @@ class FusedControlStep:
         model, data, frame = robot.model, robot.data, robot.camera_frame_id
         pin.computeJointJacobians(model, data, q)
         rotation = pin.updateFramePlacement(model, data, frame).rotation
-        jacobian = pin.getFrameJacobian(model, data, frame, pin.LOCAL)
+        jacobian = pin.getFrameJacobian(model, data, frame, LOCAL)
         mass = pin.crba(model, data, q)
         bias = pin.nonLinearEffects(model, data, q, robot.selection.dot(v))
         gravity = pin.computeGeneralizedGravity(model, data, q)
-        out = self.out
-        fused_control_step(
+        kernels.fused_control_step(
             jacobian, rotation, mass, bias, gravity, q, v, measurement.points,
-            measurement.depths, target_velocity, laser, dt, self.memory, robot.selection,
-            self.rows, self.xi_d, self.k, self.dof, self.weight_inverse, self.arm,
-            robot.arm_q_indices, robot.arm_continuous, self.scalars, out, self.jacobian,
-            self.object_jacobian,
+            measurement.depths, target_velocity, laser, dt, self.params, self.indices, self.state,
         )  # fmt: skip
-        return out[0, : self.n], out[1, : self.n], out[5, 5]
+        return self._u, self._v_ref, self.out[5, 5]
 
     def output(self) -> tuple[ControlOutput, tuple[np.ndarray, np.ndarray]]:
         """The last step's diagnostics, as the modular controller reports them."""
