@@ -45,13 +45,43 @@ def _matvec(a: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def _symmetric(upper: np.ndarray) -> np.ndarray:
-    """The full symmetric matrix from its upper triangle (``pin.crba`` fills only that)."""
-    full = upper.copy()
-    for i in range(full.shape[0]):
-        for j in range(i):
-            full[i, j] = full[j, i]
-    return full
+def _actuated_terms(
+    mass_upper: np.ndarray,
+    bias: np.ndarray,
+    gravity: np.ndarray,
+    selection: np.ndarray,
+    gravity_weight: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    r"""Rigid-body terms in actuated coordinates, for eq. (1).
+
+    .. math:: M_v = S^T M_{rb} S,\qquad C_v v + (I - G) g_v = S^T b - G\, S^T g_{rb}
+
+    with ``b = C_rb(q, S v) S v + g_rb`` from ``pin.nonLinearEffects``.
+
+    Args:
+        mass_upper: CRBA mass matrix, upper triangle filled (``pin.crba``). Shape (nv, nv).
+        bias: ``b``. Shape (nv,).
+        gravity: ``g_rb``. Shape (nv,).
+        selection: ``S``; mostly zeros, which are skipped. Shape (nv, n).
+        gravity_weight: Diagonal of ``I - G``. Shape (n,).
+
+    Returns:
+        ``M_v`` (n, n) and ``C_v v + (I - G) g_v`` (n,).
+    """
+    nv, n = selection.shape
+    mass_v = np.zeros((n, n))
+    bias_v = np.zeros(n)
+    for a in range(nv):
+        for i in range(n):
+            s_ai = selection[a, i]
+            if s_ai == 0.0:
+                continue
+            bias_v[i] += s_ai * (bias[a] - (1.0 - gravity_weight[i]) * gravity[a])
+            for b in range(nv):
+                m_ab = mass_upper[a, b] if a <= b else mass_upper[b, a]
+                for j in range(n):
+                    mass_v[i, j] += s_ai * m_ab * selection[b, j]
+    return mass_v, bias_v
 
 
 @njit(cache=True)
@@ -217,14 +247,19 @@ def storage_function(error_units: np.ndarray, k: np.ndarray) -> float:
         error_units: Feature error in controller units. Shape (r,).
         k: ``k_i``. Shape (r,).
     """
-    magnitude = np.abs(error_units)
-    return np.sum(k * (magnitude - np.log1p(magnitude)))
+    total = 0.0
+    for i in range(error_units.shape[0]):
+        magnitude = abs(error_units[i])
+        total += k[i] * (magnitude - np.log1p(magnitude))
+    return total
 
 
 @njit(cache=True)
 def saturate(u: np.ndarray, limits: np.ndarray) -> tuple[np.ndarray, float]:
     """Scale ``u`` uniformly so that ``|u_i| <= limits_i``; return it and the factor."""
-    ratio = np.max(np.abs(u) / limits)
+    ratio = 0.0
+    for i in range(u.shape[0]):
+        ratio = max(ratio, abs(u[i]) / limits[i])
     if ratio <= 1.0:
         return u, 1.0
     return u / ratio, 1.0 / ratio
@@ -320,16 +355,21 @@ def passivity_law(
     )
     if not finite:
         return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0
-    kc_error = k / (1.0 + np.abs(error)) * error
+    r = error.shape[0]
+    kc_error = np.empty(r)
+    for i in range(r):
+        kc_error[i] = k[i] / (1.0 + abs(error[i])) * error[i]
+    shaped = np.empty(n)
+    for j in range(n):
+        shaped[j] = k1[j] * np.tanh(k2[j] * secondary[j])
     nu = _matvec(jacobian.T, kc_error)
     pinv, sigma_min, damped = damped_pseudo_inverse(
         jacobian, weight_inverse, damping[0], damping[1]
     )
     feedforward = _matvec(pinv, _matvec(object_jacobian, target_velocity))
-    shaped = k1 * np.tanh(k2 * secondary)
     null_space = shaped - _matvec(pinv, _matvec(jacobian, shaped))
     feedback = _matvec(pinv, kc_error) if pseudoinverse_feedback else nu
-    u, factor = saturate(-feedback - feedforward + null_space, limits)
+    u, factor = saturate(null_space - feedback - feedforward, limits)
     if not _all_finite(u):
         return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0
     storage = storage_function(error, k)
@@ -378,16 +418,24 @@ def compensation_law(
     Returns:
         ``v_ref`` (n,) and ``V2 = |v - u|^2 / 2`` (eq. 22).
     """
-    error = v - u
-    storage = 0.5 * np.sum(error * error)
-    mass_v = _matmul(_matmul(selection.T, _symmetric(mass_upper)), selection)
-    # C_v v + (I - G) g_v = S^T bias - G S^T g
-    bias_v = _matvec(selection.T, bias) - (1.0 - gravity_weight) * _matvec(selection.T, gravity)
-    acceleration = u_dot - k_d * error
-    inertial = _matvec(mass_v, acceleration) + bias_v + damping * v
-    reference = gain_inverse * inertial + v
-    v_ref = np.where(rows, reference, u)
-    return np.minimum(np.maximum(v_ref, -limits), limits), storage
+    n = v.shape[0]
+    mass_v, bias_v = _actuated_terms(mass_upper, bias, gravity, selection, gravity_weight)
+    acceleration = np.empty(n)
+    storage = 0.0
+    for j in range(n):
+        error = v[j] - u[j]
+        storage += 0.5 * error * error
+        acceleration[j] = u_dot[j] - k_d[j] * error
+    v_ref = np.empty(n)
+    for i in range(n):
+        value = u[i]
+        if rows[i]:
+            inertial = bias_v[i] + damping[i] * v[i]
+            for j in range(n):
+                inertial += mass_v[i, j] * acceleration[j]
+            value = gain_inverse[i] * inertial + v[i]
+        v_ref[i] = min(max(value, -limits[i]), limits[i])
+    return v_ref, storage
 
 
 @njit(cache=True)
@@ -426,10 +474,8 @@ def velocity_loop_step(
     Returns:
         ``v_{k+1}``. Shape (n,).
     """
-    mass_v = _matmul(_matmul(selection.T, _symmetric(mass_upper)), selection)
+    mass_v, bias_v = _actuated_terms(mass_upper, bias, gravity, selection, gravity_weight)
     lhs = mass_v + h * np.diag(gains + damping)
-    # C_v v + (I - G) g_v = S^T bias - G S^T g
-    bias_v = _matvec(selection.T, bias) - (1.0 - gravity_weight) * _matvec(selection.T, gravity)
     rhs = _matvec(mass_v, v) + h * (gains * v_ref - bias_v)
     v_next = _cholesky_solve(lhs, rhs.reshape(-1, 1))[:, 0]
     v_pin_out[:] = _matvec(selection, v_next)
@@ -659,22 +705,31 @@ def fused_control_step(
             secondary[0] -= impedance[0]
             secondary[n_base - 1] += impedance[1]
     xi, jacobian, object_jacobian = feature_jacobians(
-        points, depths, rows, scalars[0], _matmul(frame_jacobian, selection), rotation.T.copy()
+        points, depths, rows, scalars[0], _matmul(frame_jacobian, selection), rotation.T
     )
+    r = xi.shape[0]
+    out[6, :r] = xi
+    jacobian_out[:, :] = jacobian
+    object_jacobian_out[:, :] = object_jacobian
+    # controller units (eq. 34 works in feature_scale px)
     scale = scalars[1]
-    damping = scalars[2:4].copy()
+    error = (xi - xi_d) / scale
+    jacobian /= scale
+    object_jacobian /= scale
     valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor = passivity_law(
-        (xi - xi_d) / scale, jacobian / scale, object_jacobian / scale, target_velocity,
-        secondary, k, dof[0], dof[1], weight_inverse, damping, dof[2], scalars[4] > 0.0,
+        error, jacobian, object_jacobian, target_velocity, secondary, k, dof[0], dof[1],
+        weight_inverse, scalars[2:4], dof[2], scalars[4] > 0.0,
     )  # fmt: skip
+    u_prev, u_dot = memory[0], memory[1]
     if memory[2, 0] > 0.0 and dt > 0.0:
         blend = dt / (scalars[5] + dt)
-        memory[1] = memory[1] + blend * ((u - memory[0]) / dt - memory[1])
-    memory[0] = u
+        for j in range(n):
+            u_dot[j] += blend * ((u[j] - u_prev[j]) / dt - u_dot[j])
+    u_prev[:n] = u
     memory[2, 0] = 1.0
     v_ref, v2 = compensation_law(
-        mass_upper, bias, gravity, selection, dof[3], dof[4], dof[5], dof[6] > 0.0,
-        dof[7], v, u, memory[1].copy(), dof[2],
+        mass_upper, bias, gravity, selection, dof[3], dof[4], dof[5], dof[6], dof[7], v, u,
+        u_dot[:n], dof[2],
     )  # fmt: skip
     out[0, :n] = u
     out[1, :n] = v_ref
@@ -687,6 +742,3 @@ def fused_control_step(
     out[5, 3] = 1.0 if damped else 0.0
     out[5, 4] = factor
     out[5, 5] = v2
-    out[6, : xi.shape[0]] = xi
-    jacobian_out[:, :] = jacobian
-    object_jacobian_out[:, :] = object_jacobian
