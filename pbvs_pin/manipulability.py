@@ -26,9 +26,18 @@ TIE_TOLERANCE = 1e-4
 """Relative manipulability difference below which two postures count as equally good."""
 
 
-def manipulability(jacobian: npt.ArrayLike) -> float:
-    """Product of the singular values of a Jacobian (shape (r, n)); 0 when singular."""
-    return float(np.prod(np.linalg.svd(np.asarray(jacobian, dtype=float), compute_uv=False)))
+def manipulability(jacobian: npt.ArrayLike) -> float | np.ndarray:
+    """Product of the singular values of a Jacobian; 0 when singular.
+
+    Args:
+        jacobian: Shape (r, n), or a stack of them, shape (..., r, n).
+
+    Returns:
+        A float for one Jacobian, else an array of shape (...).
+    """
+    jacobian = np.asarray(jacobian, dtype=float)
+    values = np.prod(np.linalg.svd(jacobian, compute_uv=False), axis=-1)
+    return float(values) if jacobian.ndim == 2 else values
 
 
 def arm_jacobian(robot: MobileManipulator, q: npt.ArrayLike) -> np.ndarray:

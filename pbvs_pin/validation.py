@@ -27,7 +27,7 @@ def as_array(name: str, value: npt.ArrayLike, shape: tuple[int, ...]) -> np.ndar
     array = np.asarray(value, dtype=float)
     if array.shape != shape:
         raise ShapeError(name, shape, array.shape)
-    if not np.all(np.isfinite(array)):
+    if not np.isfinite(array).all():
         raise NonFiniteValue(name)
     return array
 

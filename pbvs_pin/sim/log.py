@@ -8,11 +8,15 @@ controller's feature units (``meta["feature_scale"]`` pixels each), as in the pa
 from __future__ import annotations
 
 import json
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from pbvs_pin.manipulability import arm_jacobian, manipulability
+from pbvs_pin.sim.obstacles import clearance
 
 if TYPE_CHECKING:
     from pbvs_pin.control.kinematic import ControlOutput
@@ -25,6 +29,13 @@ CHANNELS = (
     "lambda_min", "gamma", "saturated", "damped", "target_lost", "valid",
 )  # fmt: skip
 """Names of the arrays in a log."""
+
+RECORDED = (
+    "t", "xi", "u", "v_ref", "v", "q", "target_estimate", "target_velocity_estimate",
+    "obstacle_distance", "obstacle_angle", "storage", "storage_v2", "nu", "saturated", "damped",
+    "target_lost", "valid",
+)  # fmt: skip
+"""Channels copied in the loop; :meth:`RunRecorder.finish` derives the others."""
 
 
 @dataclass
@@ -64,12 +75,28 @@ class RunLog:
 
 
 class RunRecorder:
-    """Collects channels during a run into preallocated lists."""
+    """Collects a run's samples; derives the costly channels once, at the end.
 
-    def __init__(self, setup: Setup, expected: int) -> None:
+    In the loop, :meth:`record` copies what only exists at that instant (commands, velocities,
+    configuration, estimates, the controller's Jacobians). :meth:`finish` then derives the rest
+    from the recorded configurations and times in one pass: true features, arm angles, the
+    target's true motion, clearance, manipulability, and the passivity terms (batched linear
+    algebra instead of a dozen small NumPy calls per sample).
+    """
+
+    def __init__(self, setup: Setup, footprint: np.ndarray) -> None:
+        """Prepare empty channels.
+
+        Args:
+            setup: The run's blocks.
+            footprint: Platform boundary points in its own frame [m], for the clearance.
+                Shape (k, 2).
+        """
         self.setup = setup
-        self.rows: dict[str, list] = {name: [] for name in CHANNELS}
-        self.expected = expected
+        self.footprint = footprint
+        self.rows: dict[str, list] = {name: [] for name in RECORDED}
+        self._jacobians: list[np.ndarray] = []
+        self._object_jacobians: list[np.ndarray] = []
 
     def record(
         self,
@@ -81,42 +108,55 @@ class RunRecorder:
         v_ref: np.ndarray,
         v2: float,
         laser: tuple[float, float],
-        clearance: float,
-        manipulability: float,
     ) -> None:
-        """Append one sample."""
+        """Append one sample of what exists only at this instant."""
         setup = self.setup
         plant = setup.plant
-        target_velocity = setup.target.motion.velocity(t)
         measurement = perception.measurement
-        xi = (
-            setup.features.features(measurement)
-            if measurement is not None and not perception.lost
-            else np.full(setup.features.size, np.nan)
+        seen = measurement is not None and not perception.lost
+        rows = self.rows
+        for name, value in (
+            ("t", t), ("u", output.u), ("v_ref", v_ref), ("v", plant.v), ("q", plant.q),
+            ("target_estimate", perception.filter.position),
+            ("target_velocity_estimate", perception.velocity(t)),
+            ("obstacle_distance", laser[0]), ("obstacle_angle", laser[1]),
+            ("storage", output.storage), ("storage_v2", v2), ("nu", output.nu),
+            ("saturated", output.saturated), ("damped", output.damped),
+            ("target_lost", perception.lost), ("valid", output.valid),
+        ):  # fmt: skip
+            rows[name].append(np.array(value, copy=True))
+        rows["xi"].append(
+            setup.features.features(measurement) if seen else np.full(setup.features.size, np.nan)
         )
-        xi_true = _true_features(setup, t)
-        passivity_input, lambda_min, gamma = _passivity_terms(
-            setup, jacobians, plant.v, target_velocity, perception.velocity(t)
+        r, n = setup.features.size, setup.model.n
+        self._jacobians.append(np.array(jacobians[0]) if jacobians else np.full((r, n), np.nan))
+        self._object_jacobians.append(
+            np.array(jacobians[1]) if jacobians else np.full((r, 3), np.nan)
         )
-        sample = {
-            "t": t, "xi": xi, "xi_true": xi_true, "xi_d": setup.xi_d, "u": output.u,
-            "v_ref": v_ref, "v": plant.v, "q": plant.q, "arm": setup.model.arm_positions(plant.q),
-            "target": setup.target.midpoint(t), "target_estimate": perception.filter.position,
-            "target_velocity": target_velocity,
-            "target_velocity_estimate": perception.velocity(t),
-            "obstacle_distance": laser[0], "obstacle_angle": laser[1], "clearance": clearance,
-            "manipulability": manipulability, "storage": output.storage, "storage_v2": v2,
-            "nu": output.nu, "passivity_input": passivity_input, "lambda_min": lambda_min,
-            "gamma": gamma, "saturated": output.saturated, "damped": output.damped,
-            "target_lost": perception.lost, "valid": output.valid,
-        }  # fmt: skip
-        for name, value in sample.items():
-            self.rows[name].append(np.array(value, copy=True))
 
-    def finish(self, wall_time: float) -> RunLog:
-        """Stack the samples into a :class:`RunLog`."""
-        channels = {name: np.array(values) for name, values in self.rows.items()}
+    def finish(self, started: float) -> RunLog:
+        """Derive the remaining channels and stack everything into a :class:`RunLog`.
+
+        Args:
+            started: ``time.perf_counter()`` when the run started; ``meta["wall_time"]`` is
+                the time from then until the log is complete.
+        """
         setup = self.setup
+        recorded = {name: np.array(values) for name, values in self.rows.items()}
+        derived = _derived_in_one_pass(setup, self.footprint, recorded["t"], recorded["q"])
+        derived.update(
+            _passivity_terms(
+                setup,
+                np.array(self._jacobians),
+                np.array(self._object_jacobians),
+                recorded["v"],
+                derived["target_velocity"],
+                recorded["target_velocity_estimate"],
+            )
+        )
+        derived["xi_d"] = np.broadcast_to(setup.xi_d, recorded["xi"].shape).copy()
+        channels = {name: {**recorded, **derived}[name] for name in CHANNELS}
+        wall_time = time.perf_counter() - started
         scenario = setup.scenario
         gains = setup.controller.gains
         meta = {
@@ -143,35 +183,68 @@ class RunRecorder:
         return RunLog(channels, meta)
 
 
-def _true_features(setup: Setup, t: float) -> np.ndarray:
-    """Features of the true target seen from the true robot (NaN when behind the camera)."""
-    camera = setup.robot.camera
-    image, depths = camera.project_world(
-        setup.robot.camera_pose(setup.plant.q), setup.target.centres(t)
-    )
-    if np.any(depths <= 1e-3):
-        return np.full(setup.features.size, np.nan)
-    return image.reshape(-1)[setup.features.rows]
+def _derived_in_one_pass(
+    setup: Setup, footprint: np.ndarray, times: np.ndarray, configurations: np.ndarray
+) -> dict[str, np.ndarray]:
+    """Channels that follow from each sample's time and true configuration."""
+    robot, model, target = setup.robot, setup.model, setup.target
+    samples = len(times)
+    r = setup.features.size
+    out = {
+        "xi_true": np.full((samples, r), np.nan),
+        "arm": np.empty((samples, model.n_arm)),
+        "target": np.empty((samples, 3)),
+        "target_velocity": np.empty((samples, 3)),
+        "clearance": np.empty(samples),
+    }
+    arm_jacobians = []
+    for i, (t, q) in enumerate(zip(times, configurations, strict=True)):
+        centres = target.centres(t)
+        image, depths = robot.camera.project_world(robot.camera_pose(q), centres)
+        if np.all(depths > 1e-3):
+            out["xi_true"][i] = image.reshape(-1)[setup.features.rows]
+        base = robot.base_pose(q)
+        yaw = float(np.arctan2(base.rotation[1, 0], base.rotation[0, 0]))
+        out["clearance"][i] = clearance(setup.obstacles, footprint, *base.translation[:2], yaw)
+        out["arm"][i] = model.arm_positions(q)
+        out["target"][i] = centres.mean(axis=0)
+        out["target_velocity"][i] = target.motion.velocity(t)
+        arm_jacobians.append(arm_jacobian(model, q))
+    out["manipulability"] = manipulability(np.array(arm_jacobians))
+    return out
 
 
 def _passivity_terms(
     setup: Setup,
-    jacobians: tuple[np.ndarray, np.ndarray] | None,
+    jacobians: np.ndarray,
+    object_jacobians: np.ndarray,
     v: np.ndarray,
     target_velocity: np.ndarray,
     estimated_velocity: np.ndarray,
-) -> tuple[np.ndarray, float, np.ndarray]:
+) -> dict[str, np.ndarray]:
     """``v + J# J_o pdot`` (input of eq. 9), ``lambda_min(J J^T)`` and ``gamma`` (eq. 31).
 
-    All in controller units; NaN when there is no measurement.
+    All in controller units, for every sample at once; NaN where there was no measurement.
+
+    Args:
+        setup: The run's blocks.
+        jacobians: ``J`` [px]. Shape (N, r, n).
+        object_jacobians: ``J_o`` [px/m]. Shape (N, r, 3).
+        v: Actuated velocities. Shape (N, n).
+        target_velocity: True target velocities [m/s]. Shape (N, 3).
+        estimated_velocity: Estimated target velocities [m/s]. Shape (N, 3).
     """
-    n, r = setup.model.n, setup.features.size
-    if jacobians is None:
-        return np.full(n, np.nan), float("nan"), np.full(r, np.nan)
     scale = setup.controller.gains.feature_scale
-    jacobian, object_jacobian = jacobians[0] / scale, jacobians[1] / scale
-    pinv, _, _ = setup.controller.pseudo_inverse(jacobian)
-    passivity_input = v + pinv @ object_jacobian @ target_velocity
-    lambda_min = float(np.linalg.eigvalsh(jacobian @ jacobian.T)[0])
-    gamma = object_jacobian @ (target_velocity - estimated_velocity)
-    return passivity_input, lambda_min, gamma
+    jacobian, object_jacobian = jacobians / scale, object_jacobians / scale
+    seen = np.isfinite(jacobian).all(axis=(1, 2)) & np.isfinite(object_jacobian).all(axis=(1, 2))
+    samples, _, n = jacobian.shape
+    passivity_input = np.full((samples, n), np.nan)
+    lambda_min = np.full(samples, np.nan)
+    for i in np.flatnonzero(seen):
+        pinv = setup.controller.pseudo_inverse(jacobian[i])[0]
+        passivity_input[i] = v[i] + pinv @ (object_jacobian[i] @ target_velocity[i])
+    if seen.any():
+        gram = jacobian[seen] @ jacobian[seen].transpose(0, 2, 1)
+        lambda_min[seen] = np.linalg.eigvalsh(gram)[:, 0]
+    gamma = np.einsum("sij,sj->si", object_jacobian, target_velocity - estimated_velocity)
+    return {"passivity_input": passivity_input, "lambda_min": lambda_min, "gamma": gamma}

@@ -32,7 +32,7 @@ from pbvs_pin.control.secondary import (
 from pbvs_pin.dynamics import VelocityLoop
 from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.features import ImageMeasurement, TwoSphereFeatures
-from pbvs_pin.manipulability import arm_manipulability, max_manipulability_posture
+from pbvs_pin.manipulability import max_manipulability_posture
 from pbvs_pin.plant import Plant
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog, RunRecorder
@@ -41,7 +41,6 @@ from pbvs_pin.sim.obstacles import (
     CircleObstacle,
     Laser,
     Obstacle,
-    clearance,
     footprint_points,
 )
 from pbvs_pin.sim.scenario import Scenario, check
@@ -348,9 +347,9 @@ def simulate(
     steps = round(scenario[""]["duration"] / control_dt)
     log_every = max(1, round(1.0 / (sim["log_rate"] * control_dt)))
     laser_every = max(1, round(1.0 / (scenario["laser"]["rate"] * control_dt)))
-    recorder = RunRecorder(setup, steps // log_every + 1)
-    perception = Perception(setup)
     footprint = footprint_points(scenario["platform"]["length"], scenario["platform"]["width"])
+    recorder = RunRecorder(setup, footprint)
+    perception = Perception(setup)
     laser_reading = (float("inf"), 0.0)
     laser_array = np.array(laser_reading)
     fused = None
@@ -390,8 +389,6 @@ def simulate(
         if step % log_every == 0:
             if fused is not None and seen:
                 output, jacobians = fused.output()
-            base = setup.robot.base_pose(plant.q)
-            yaw = float(np.arctan2(base.rotation[1, 0], base.rotation[0, 0]))
             recorder.record(
                 t=t,
                 output=output,
@@ -400,8 +397,6 @@ def simulate(
                 v_ref=v_ref,
                 v2=v2,
                 laser=laser_reading,
-                clearance=clearance(setup.obstacles, footprint, *base.translation[:2], yaw),
-                manipulability=arm_manipulability(setup.model, plant.q),
             )
             if observer is not None:
                 observer(_snapshot(setup, perception, t))  # fmt: skip
@@ -411,7 +406,7 @@ def simulate(
             bar.update(1)
     if bar is not None:
         bar.close()
-    return recorder.finish(wallclock.perf_counter() - started)
+    return recorder.finish(started)
 
 
 def _snapshot(setup: Setup, perception: Perception, t: float) -> Snapshot:
