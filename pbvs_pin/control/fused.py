@@ -106,6 +106,13 @@ class FusedControlStep:
         )
         self.n, self.r = n, r
         self._u, self._v_ref = self.out[0, :n], self.out[1, :n]
+        self._pinocchio = (
+            model.model,
+            model.data,
+            model.camera_frame_id,
+            model.selection,
+            np.zeros(model.model.nv),
+        )
 
     @staticmethod
     def supports(controller: PassivityController, objectives: list[SecondaryObjective]) -> bool:
@@ -141,13 +148,13 @@ class FusedControlStep:
             ``u`` (n,), ``v_ref`` (n,), ``V2``: views into a buffer that the next step
             overwrites. Zero ``u`` when an input is not finite.
         """
-        robot = self.model
-        model, data, frame = robot.model, robot.data, robot.camera_frame_id
+        model, data, frame, selection, v_pin = self._pinocchio
         pin.computeJointJacobians(model, data, q)
         rotation = pin.updateFramePlacement(model, data, frame).rotation
         jacobian = pin.getFrameJacobian(model, data, frame, LOCAL)
         mass = pin.crba(model, data, q)
-        bias = pin.nonLinearEffects(model, data, q, robot.selection.dot(v))
+        np.dot(selection, v, out=v_pin)
+        bias = pin.nonLinearEffects(model, data, q, v_pin)
         gravity = pin.computeGeneralizedGravity(model, data, q)
         kernels.fused_control_step(
             jacobian, rotation, mass, bias, gravity, q, v, measurement.points,
