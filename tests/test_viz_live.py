@@ -35,7 +35,7 @@ SPHERES = ["meshcat/pbvs/targets/sphere_0", "meshcat/pbvs/targets/sphere_1"]
 CAMERA = "meshcat/pbvs/camera"
 CURRENT = ["meshcat/pbvs/camera/image/current/0", "meshcat/pbvs/camera/image/current/1"]
 TRAILS = ["meshcat/pbvs/trail_platform", "meshcat/pbvs/trail_target"]
-SPEED = 2.0  # simulated seconds per wall-clock second in the live run
+SPEED = 1.0  # simulated seconds per wall-clock second in the live run
 
 
 JS_WATCH_CAMERA = """() => {
@@ -73,7 +73,7 @@ def _camera_pose(robot, q) -> pin.SE3:
 
 @pytest.fixture(scope="module")
 def live_run(browser):
-    """Two seconds of experiment 1 played at 2x real time, a browser watching from the start."""
+    """Two seconds of experiment 1 played in real time, a browser watching from the start."""
     scenario = load_scenario("experiment1").with_values(duration=2.0)
     snapshots = []
     with LiveView(scenario, speed=SPEED) as live:
@@ -180,10 +180,11 @@ def test_live_page_is_updated_during_the_run(live_run):
     duration = 2.0
     # paced: the last snapshot (t = 1.98 s) is shown no earlier than 1.98 / SPEED after the first
     assert live_run["wall"] >= (duration - 0.02) / SPEED - 0.02, live_run["wall"]
-    # at MAX_RATE updates per second over about a second, a watching browser sees well over 10
+    # MAX_RATE updates per second for two seconds: a browser rendering in software (a few
+    # frames per second at worst) still sees the camera at several places
     seen = live_run["seen"]
-    assert len(seen) >= 10, seen
-    assert live_run["stats"].frames >= 10, live_run["stats"]
+    assert len(seen) >= 5, seen
+    assert live_run["stats"].frames >= 20, live_run["stats"]
 
 
 def test_live_view_rejects_a_bad_speed():
