@@ -9,7 +9,9 @@ is called at the log rate; it records trail points and sends the scene at most
 :data:`MAX_RATE` times a second of wall-clock time, one meshcat command per moving node (the
 robot has one node per joint). Commands wait at most :data:`SEND_TIMEOUT` for the server; if
 it stops answering, the view prints one warning on stderr and does nothing from then on,
-while the simulation goes on.
+while the simulation goes on. With a ``speed``, :meth:`LiveView.show` also holds the
+simulation back so that the browser plays the run at that many simulated seconds per second
+(``pbvs-pin run --meshcat`` plays in real time); without one the run goes as fast as it can.
 """
 
 from __future__ import annotations
