@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pbvs_pin.exceptions import PbvsError
+from pbvs_pin.exceptions import GainError, PbvsError
+from pbvs_pin.validation import positive_number
 
 
 def _info(args: argparse.Namespace) -> None:
@@ -105,12 +106,9 @@ def _sweep(args: argparse.Namespace) -> None:
 def _positive_float(text: str) -> float:
     """An argparse type: a positive finite number."""
     try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not (np.isfinite(value) and value > 0.0):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return value
+        return positive_number("value", text)
+    except GainError as err:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from err
 
 
 def build_parser() -> argparse.ArgumentParser:

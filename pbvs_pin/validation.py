@@ -6,7 +6,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from pbvs_pin.exceptions import NonFiniteValue, ShapeError
+from pbvs_pin.exceptions import GainError, NonFiniteValue, ShapeError
 
 
 def as_array(name: str, value: npt.ArrayLike, shape: tuple[int, ...]) -> np.ndarray:
@@ -30,6 +30,25 @@ def as_array(name: str, value: npt.ArrayLike, shape: tuple[int, ...]) -> np.ndar
     if not np.isfinite(array).all():
         raise NonFiniteValue(name)
     return array
+
+
+def positive_number(name: str, value: object) -> float:
+    """Convert ``value`` (a number or its text) to a positive finite float.
+
+    Args:
+        name: Name of the parameter, used in the error message and as its ``field``.
+        value: Anything ``float`` accepts.
+
+    Raises:
+        GainError: If ``value`` is not a number, not finite, or not above zero.
+    """
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = float("nan")
+    if not (np.isfinite(number) and number > 0.0):
+        raise GainError(f"{name}: expected a positive number, got {value!r}", field=name)
+    return number
 
 
 def as_se3(name: str, pose: pin.SE3 | npt.ArrayLike) -> pin.SE3:

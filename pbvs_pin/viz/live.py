@@ -28,11 +28,12 @@ import numpy as np
 
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import build_robot
-from pbvs_pin.exceptions import GainError, PbvsError, ViewerUnavailable
+from pbvs_pin.exceptions import PbvsError, ViewerUnavailable
 from pbvs_pin.features import TwoSphereFeatures
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.loop import Snapshot, solve_target_start
 from pbvs_pin.sim.scenario import Scenario, load_scenario
+from pbvs_pin.validation import positive_number
 from pbvs_pin.viz import scene
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -160,7 +161,7 @@ class LiveView:
         )
         q0, centres0 = _start(self.scenario, self.robot)
         timeout = SEND_TIMEOUT if timeout is None else float(timeout)
-        self._speed = _check_speed(speed)
+        self._speed = None if speed is None else positive_number("speed", speed)
         self._wall_start: float | None = None
         self._trail_every = max(1, int(trail_every))
         self.vis: meshcat.Visualizer = scene.start_visualizer(timeout=timeout, advice=LIVE_ADVICE)
@@ -309,26 +310,6 @@ class LiveView:
             "the run continues and its results are still written",
             file=sys.stderr,
         )
-
-
-def _check_speed(speed: float | None) -> float | None:
-    """``speed`` as a positive float, or None.
-
-    Raises:
-        GainError: If ``speed`` is not a positive finite number.
-    """
-    if speed is None:
-        return None
-    try:
-        value = float(speed)
-    except (TypeError, ValueError):
-        value = float("nan")
-    if not (np.isfinite(value) and value > 0.0):
-        raise GainError(
-            f"speed: expected a positive number of simulated seconds per second, got {speed!r}",
-            field="speed",
-        )
-    return value
 
 
 def _extend(trail: list[np.ndarray], point: np.ndarray) -> None:
