@@ -155,7 +155,8 @@ class RunRecorder:
             )
         )
         derived["xi_d"] = np.broadcast_to(setup.xi_d, recorded["xi"].shape).copy()
-        channels = {name: {**recorded, **derived}[name] for name in CHANNELS}
+        every = {**recorded, **derived}
+        channels = {name: every[name] for name in CHANNELS}
         wall_time = time.perf_counter() - started
         scenario = setup.scenario
         gains = setup.controller.gains
