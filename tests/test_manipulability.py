@@ -53,19 +53,6 @@ def yoshikawa(robot, arm_angles) -> float:
     return float(np.sqrt(max(np.linalg.det(jac @ jac.T), 0.0)))
 
 
-def _limits(robot):
-    lower, upper = [], []
-    for name in robot.arm_joint_names:
-        joint = robot.model.joints[robot.model.getJointId(name)]
-        if joint.nq == 2:
-            lower.append(-np.inf)
-            upper.append(np.inf)
-        else:
-            lower.append(robot.model.lowerPositionLimit[joint.idx_q])
-            upper.append(robot.model.upperPositionLimit[joint.idx_q])
-    return np.array(lower), np.array(upper)
-
-
 @pytest.fixture(scope="module")
 def optimum(load):
     cache = {}
@@ -86,7 +73,7 @@ def optimum(load):
 def test_no_better_neighbour(load, optimum, name):
     robot = load(name)
     theta = optimum(name)
-    lower, upper = _limits(robot)
+    lower, upper = robot.arm_position_limits()
     assert theta.shape == (robot.n_arm,)
     assert np.all(theta >= lower) and np.all(theta <= upper)
     best = yoshikawa(robot, theta)
@@ -117,7 +104,7 @@ def test_reference_robot_optimum_against_grid_search(cyton, optimum, closed_form
         linear, _ = closed_form.world_jacobian(0.0, 0.0, 0.0, 0.0, q2, q3)
         return abs(np.linalg.det(linear[:, 2:]))  # square 3 x 3: |det| = product of sigmas
 
-    lower, upper = _limits(cyton)
+    lower, upper = cyton.arm_position_limits()
     pitch = np.linspace(lower[1], upper[1], 151)
     elbow = np.linspace(lower[2], upper[2], 141)
     grid = np.array([[hand_manipulability(a, b) for b in elbow] for a in pitch])
