@@ -18,12 +18,13 @@ import pytest
 from browser import JS_DESCRIBE, Page, chromium, geometry_placements
 
 import pbvs_pin.viz.live as live_module
-import pbvs_pin.viz.scene as scene
+import pbvs_pin.viz.server as server
 from pbvs_pin.cli import main
 from pbvs_pin.exceptions import PbvsError, ViewerUnavailable
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario, scenario_dir
 from pbvs_pin.viz.live import LiveView, view_robot
+from pbvs_pin.viz.run_scene import IMAGE_PLANE_DEPTH
 
 # meshcat 0.3.2 imports a pyzmq module that pyzmq itself deprecates.
 pytestmark = pytest.mark.filterwarnings(
@@ -136,7 +137,7 @@ def test_live_page_shows_the_last_snapshot(live_run):
     camera = _camera_pose(robot, q)
     np.testing.assert_allclose(now[CAMERA], camera.homogeneous, atol=POSE_TOL)
     # current points: the measured [u, v] on the image plane (pixel col = cx - u, row = cy - v)
-    f, depth = robot.camera.focal_px, scene.IMAGE_PLANE_DEPTH
+    f, depth = robot.camera.focal_px, IMAGE_PLANE_DEPTH
     assert np.all(np.isfinite(snapshots[-1].points))
     for path, (u, v) in zip(CURRENT, snapshots[-1].points, strict=True):
         want = camera.act(np.array([-u / f * depth, -v / f * depth, depth]))
@@ -282,13 +283,13 @@ def test_view_robot_serves_until_ctrl_c(monkeypatch, capsys):
     # only the viewer's own clock: Ctrl-C arrives while it serves
     clock = types.SimpleNamespace(sleep=ctrl_c, perf_counter=time.perf_counter)
     monkeypatch.setattr(live_module, "time", clock)
-    stop = scene.stop_visualizer
+    stop = server.stop_visualizer
 
     def record_stop(vis):
         stopped.append(vis)
         stop(vis)
 
-    monkeypatch.setattr(scene, "stop_visualizer", record_stop)
+    monkeypatch.setattr(server, "stop_visualizer", record_stop)
     assert view_robot("pioneer_cyton") is None
     out = capsys.readouterr().out
     assert opened and opened[0].startswith("http://") and opened[0] in out
@@ -349,4 +350,4 @@ def test_missing_server_program_is_a_viewer_error(monkeypatch):
     """A real failure: the server subprocess cannot even be executed."""
     monkeypatch.setattr(sys, "executable", "/nonexistent/python3")
     with pytest.raises(ViewerUnavailable, match="could not start the meshcat server"):
-        scene.start_visualizer()
+        server.start_visualizer()

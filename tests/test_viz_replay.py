@@ -14,10 +14,13 @@ import pytest
 from browser import JS_DESCRIBE, Page, chromium, geometry_placements, threejs_to_meshcat
 from conftest import project_world
 
-import pbvs_pin.viz.scene as scene
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.viz.primitives import MESHCAT_TO_THREEJS
+from pbvs_pin.viz.recorder import offline_visualizer
 from pbvs_pin.viz.replay import log_robot, write_run_replay
+from pbvs_pin.viz.run_scene import IMAGE_PLANE_DEPTH, RunFacts, RunScene
+from pbvs_pin.viz.server import open_visualizer
 
 # meshcat 0.3.2 imports a pyzmq module that pyzmq itself deprecates.
 pytestmark = pytest.mark.filterwarnings(
@@ -106,7 +109,7 @@ def _camera_pose(robot, q) -> pin.SE3:
 def _image_point_in_camera(focal: float, camera_pose: pin.SE3, centre: np.ndarray) -> np.ndarray:
     """Where the image plane shows a sphere centre, in the camera frame (independent pinhole)."""
     u, v = project_world(focal, camera_pose, centre)
-    depth = scene.IMAGE_PLANE_DEPTH
+    depth = IMAGE_PLANE_DEPTH
     # paper's [u, v] -> pixel col = cx - u, row = cy - v -> ray ((col - cx)/f, (row - cy)/f, 1)
     return np.array([-u / focal * depth, -v / focal * depth, depth])
 
@@ -139,7 +142,7 @@ def test_seek_to_a_key_matches_pinocchio_and_the_log(run, page):
     paths = [run["geometry_paths"][n] for n in names]
     res = page.seek([*paths, *SPHERES, CAMERA, *CURRENT], KEY_TIME)
     np.testing.assert_allclose(
-        np.array(res["scene"]).reshape(4, 4, order="F"), scene.MESHCAT_TO_THREEJS, atol=1e-12
+        np.array(res["scene"]).reshape(4, 4, order="F"), MESHCAT_TO_THREEJS, atol=1e-12
     )
     expected = geometry_placements(robot.model, robot.visual_model, q)
     initial = geometry_placements(robot.model, robot.visual_model, log["q"][0])
@@ -189,7 +192,7 @@ def test_seek_between_keys_follows_the_interpolated_log(run, page):
 def test_desired_points_sit_at_the_desired_features(run, page):
     robot, log = run["robot"], run["log"]
     u1, v1, v2 = log["xi_d"][0]
-    f, depth = robot.camera.focal_px, scene.IMAGE_PLANE_DEPTH
+    f, depth = robot.camera.focal_px, IMAGE_PLANE_DEPTH
     res = page.seek([CAMERA, *DESIRED], KEY_TIME)
     camera = threejs_to_meshcat(res["nodes"][CAMERA], res["scene"])
     for path, (u, v) in zip(DESIRED, [(u1, v1), (u1, v2)], strict=True):
@@ -209,7 +212,7 @@ def test_offline_scene_is_the_served_scene(run):
     """The server-free page is byte for byte what meshcat's server returns."""
     import meshcat
 
-    recorder = scene.offline_visualizer().window
+    recorder = offline_visualizer().window
 
     class Tee:
         def __init__(self, served):
@@ -219,11 +222,11 @@ def test_offline_scene_is_the_served_scene(run):
             self.served.send(command)
             recorder.send(command)
 
-    with scene.open_visualizer() as served:
+    with open_visualizer() as served:
         both = meshcat.Visualizer(window=Tee(served.window))
         obstacle = {"kind": "circle", "x": 1.0, "y": 0.0, "radius": 0.1}
-        facts = scene.RunFacts(0.05, 0.1, np.array([[0.0, 60.0], [0.0, -60.0]]), (obstacle,))
-        run_scene = scene.RunScene(both, run["robot"], facts)
+        facts = RunFacts(0.05, 0.1, np.array([[0.0, 60.0], [0.0, -60.0]]), (obstacle,))
+        run_scene = RunScene(both, run["robot"], facts)
         points = [[5.0, 6.0], [7.0, 8.0]]
         run_scene.apply(run_scene.poses(run["log"]["q"][-1], np.eye(3)[:2], points))
         both["pbvs/targets"].set_property("visible", False)

@@ -1,7 +1,7 @@
 """Live Meshcat views: a running simulation (:class:`LiveView`) and a robot (:func:`view_robot`).
 
-Both draw with :mod:`pbvs_pin.viz.scene`; a run is drawn by the same
-:class:`~pbvs_pin.viz.scene.RunScene` as the standalone replay of
+Both draw with the scene modules of :mod:`pbvs_pin.viz`; a run is drawn by the same
+:class:`~pbvs_pin.viz.run_scene.RunScene` as the standalone replay of
 :mod:`pbvs_pin.viz.replay`.
 
 A live view must never cost the run its results, and little of its time. :meth:`LiveView.show`
@@ -34,7 +34,18 @@ from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.loop import Snapshot, solve_target_start
 from pbvs_pin.sim.scenario import Scenario, load_scenario
 from pbvs_pin.validation import positive_number
-from pbvs_pin.viz import scene
+from pbvs_pin.viz import server
+from pbvs_pin.viz.frustum import add_camera_frustum, add_camera_triad
+from pbvs_pin.viz.primitives import set_camera_view
+from pbvs_pin.viz.recorder import offline_visualizer
+from pbvs_pin.viz.robot_scene import RobotScene
+from pbvs_pin.viz.run_scene import (
+    FRUSTUM_DEPTH,
+    TRIAD_SCALE,
+    RunFacts,
+    RunScene,
+    two_sphere_points,
+)
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import meshcat
@@ -121,7 +132,7 @@ class LiveView:
         robot: The robot drawn (its own instance, not the simulation's).
         vis: The served visualizer.
         url: Address of the viewer page.
-        scene: The drawn :class:`~pbvs_pin.viz.scene.RunScene`.
+        scene: The drawn :class:`~pbvs_pin.viz.run_scene.RunScene`.
     """
 
     def __init__(
@@ -153,10 +164,10 @@ class LiveView:
         camera = CameraIntrinsics(spec["focal_px"], spec["width"], spec["height"])
         self.robot = build_robot(self.scenario["robot"]["name"], camera)
         target = self.scenario["target"]
-        facts = scene.RunFacts(
+        facts = RunFacts(
             target_diameter=target["diameter"],
             target_separation=target["separation"],
-            desired_points=scene.two_sphere_points(target["xi_d"]),
+            desired_points=two_sphere_points(target["xi_d"]),
             obstacles=self.scenario.obstacles,
         )
         q0, centres0 = _start(self.scenario, self.robot)
@@ -164,13 +175,13 @@ class LiveView:
         self._speed = None if speed is None else positive_number("speed", speed)
         self._wall_start: float | None = None
         self._trail_every = max(1, int(trail_every))
-        self.vis: meshcat.Visualizer = scene.start_visualizer(timeout=timeout, advice=LIVE_ADVICE)
+        self.vis: meshcat.Visualizer = server.start_visualizer(timeout=timeout, advice=LIVE_ADVICE)
         try:
             self.url: str = self.vis.url()
-            self.scene = scene.RunScene(self.vis, self.robot, facts)
+            self.scene = RunScene(self.vis, self.robot, facts)
             self.scene.apply(self.scene.poses(q0, centres0, facts.desired_points))
         except Exception as err:  # zmq errors: the server died while drawing
-            scene.stop_visualizer(self.vis)
+            server.stop_visualizer(self.vis)
             raise ViewerUnavailable(
                 f"the meshcat server stopped answering ({type(err).__name__}: {err})",
                 LIVE_ADVICE,
@@ -258,7 +269,7 @@ class LiveView:
             return
         self.flush()
         self._closed = True
-        scene.stop_visualizer(self.vis)
+        server.stop_visualizer(self.vis)
 
     def static_html(self) -> str:
         """The served scene as a standalone page (asks the server).
@@ -322,7 +333,7 @@ def _extend(trail: list[np.ndarray], point: np.ndarray) -> None:
 # ---------------------------------------------------------------------- robot viewer
 def _draw_robot(vis: meshcat.Visualizer, robot: MobileManipulator, q: np.ndarray) -> None:
     """The robot at ``q`` with its camera optical frame (triad) and frustum."""
-    robot_scene = scene.RobotScene(vis, robot.model, robot.visual_model, strict=False)
+    robot_scene = RobotScene(vis, robot.model, robot.visual_model, strict=False)
     if robot_scene.failed:
         print(
             f"pbvs-pin: warning: {len(robot_scene.failed)} geometries could not be drawn: "
@@ -331,12 +342,12 @@ def _draw_robot(vis: meshcat.Visualizer, robot: MobileManipulator, q: np.ndarray
         )
     robot_scene.display(q)
     camera = robot.camera
-    scene.add_camera_frustum(
-        vis, camera.focal_px, camera.width, camera.height, scene.FRUSTUM_DEPTH,
+    add_camera_frustum(
+        vis, camera.focal_px, camera.width, camera.height, FRUSTUM_DEPTH,
         pose=robot.camera_pose(q), principal_point=camera.principal_point,
     )  # fmt: skip
-    scene.add_camera_triad(vis, scene.TRIAD_SCALE)
-    scene.set_camera_view(vis, ROBOT_VIEW)
+    add_camera_triad(vis, TRIAD_SCALE)
+    set_camera_view(vis, ROBOT_VIEW)
 
 
 def _open_browser(url: str) -> bool:
@@ -370,7 +381,7 @@ def view_robot(name: str, html: str | Path | None = None) -> Path | None:
     robot = build_robot(name)
     q = robot.home()
     if html is not None:
-        vis = scene.offline_visualizer()
+        vis = offline_visualizer()
         _draw_robot(vis, robot, q)
         path = Path(html)
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -378,7 +389,7 @@ def view_robot(name: str, html: str | Path | None = None) -> Path | None:
         print(f"robot view written to {path}")
         return path
     advice = VIEW_ADVICE.format(name=name)
-    vis = scene.start_visualizer(timeout=SEND_TIMEOUT, advice=advice)
+    vis = server.start_visualizer(timeout=SEND_TIMEOUT, advice=advice)
     try:
         try:
             _draw_robot(vis, robot, q)
@@ -396,5 +407,5 @@ def view_robot(name: str, html: str | Path | None = None) -> Path | None:
     except KeyboardInterrupt:
         print("stopped")
     finally:
-        scene.stop_visualizer(vis)
+        server.stop_visualizer(vis)
     return None

@@ -1,10 +1,10 @@
 """A run log as a standalone Meshcat HTML replay.
 
-The replay draws the same :class:`~pbvs_pin.viz.scene.RunScene` as the live view (robot,
+The replay draws the same :class:`~pbvs_pin.viz.run_scene.RunScene` as the live view (robot,
 target spheres, obstacles, camera frustum and triad, virtual image plane with desired and
 current feature points, platform and target trails) and keys its moving parts at
 :data:`REPLAY_RATE` into one animation. The page is written from an offline scene
-(:func:`~pbvs_pin.viz.scene.offline_visualizer`), so no meshcat server is needed to write it,
+(:func:`~pbvs_pin.viz.recorder.offline_visualizer`), so no meshcat server is needed to write it,
 and none to open it.
 """
 
@@ -20,7 +20,9 @@ from pbvs_pin.exceptions import PointBehindCamera
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.targets import centres_from
-from pbvs_pin.viz import scene
+from pbvs_pin.viz.animation import write_replay_html
+from pbvs_pin.viz.recorder import offline_visualizer
+from pbvs_pin.viz.run_scene import RunFacts, RunScene, two_sphere_points
 
 REPLAY_RATE = 10.0
 """Frames per second kept in a replay [Hz] (the log is downsampled to this)."""
@@ -38,12 +40,12 @@ def log_robot(log: RunLog) -> MobileManipulator:
     )
 
 
-def log_facts(log: RunLog) -> scene.RunFacts:
+def log_facts(log: RunLog) -> RunFacts:
     """Target size, desired features and obstacles of a logged run."""
-    return scene.RunFacts(
+    return RunFacts(
         target_diameter=log.meta["target_diameter"],
         target_separation=log.meta["target_separation"],
-        desired_points=scene.two_sphere_points(log["xi_d"][0]),
+        desired_points=two_sphere_points(log["xi_d"][0]),
         obstacles=tuple(log.meta.get("obstacles", [])),
     )
 
@@ -99,8 +101,8 @@ def write_run_replay(log: RunLog, path: str | Path, rate: float = REPLAY_RATE) -
     times = t[keep] - t[keep[0]]
     separation = facts.target_separation
     tops = log["target"] + [0.0, 0.0, separation / 2]
-    vis = scene.offline_visualizer()
-    run = scene.RunScene(vis, robot, facts)
+    vis = offline_visualizer()
+    run = RunScene(vis, robot, facts)
     run.draw_trails([run.platform_point(q) for q in log["q"]], log["target"])
     last_seen = np.asarray(facts.desired_points, dtype=float)
     frames = []
@@ -109,4 +111,4 @@ def write_run_replay(log: RunLog, path: str | Path, rate: float = REPLAY_RATE) -
         points = true_image_points(robot, log["q"][k], centres)
         last_seen = np.where(np.isfinite(points), points, last_seen)
         frames.append(run.poses(log["q"][k], centres, last_seen))
-    return scene.write_replay_html(path, vis, times, lambda k, _t: frames[k], fps=rate)
+    return write_replay_html(path, vis, times, lambda k, _t: frames[k], fps=rate)
