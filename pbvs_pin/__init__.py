@@ -8,7 +8,7 @@ and the velocity-reference model of eq. (1).
 
 from pbvs_pin.base import BaseAdapter, DifferentialDrive, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics, point_interaction_matrix
-from pbvs_pin.catalogue import ROBOT_NAMES
+from pbvs_pin.catalogue import ROBOT_NAMES, load_robot
 from pbvs_pin.dynamics import DynamicTerms, VelocityLoop, rigid_body_terms
 from pbvs_pin.exceptions import (
     DriveAxleNotFound,
@@ -31,7 +31,7 @@ from pbvs_pin.manipulability import (
     max_manipulability_posture,
     whole_body_manipulability,
 )
-from pbvs_pin.robot import MobileManipulator, load_robot
+from pbvs_pin.robot import MobileManipulator
 
 __all__ = [
     "ROBOT_NAMES",

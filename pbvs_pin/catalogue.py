@@ -120,3 +120,17 @@ def build_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileMani
     if Path(name).suffix.lower() == ".urdf" or Path(name).exists():
         return MobileManipulator.from_urdf(name, camera=camera)
     raise RobotNotFound(name, ROBOT_NAMES)
+
+
+def load_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileManipulator:
+    """Load a shipped robot by name, or any URDF file holding the camera optical frame.
+
+    Args:
+        name: ``"pioneer_cyton"``, ``"pioneer_<arm>"`` for an example-robot-data arm on the
+            reference platform (``"pioneer_ur5"``, ...), ``"tiago"``, or a URDF path.
+        camera: Intrinsics; the paper's camera by default.
+
+    Raises:
+        RobotNotFound: If the name is unknown.
+    """
+    return build_robot(name, camera)

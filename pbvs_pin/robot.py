@@ -411,19 +411,3 @@ def _lock_off_chain(
     if not locked:
         return model, visual_model
     return pin.buildReducedModel(model, visual_model, locked, pin.neutral(model))
-
-
-def load_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileManipulator:
-    """Load a shipped robot by name, or any URDF file holding the camera optical frame.
-
-    Args:
-        name: ``"pioneer_cyton"``, ``"pioneer_<arm>"`` for an example-robot-data arm on the
-            reference platform (``"pioneer_ur5"``, ...), ``"tiago"``, or a URDF path.
-        camera: Intrinsics; the paper's camera by default.
-
-    Raises:
-        RobotNotFound: If the name is unknown.
-    """
-    from pbvs_pin.catalogue import build_robot
-
-    return build_robot(name, camera)
