@@ -3,7 +3,7 @@
 Each defect is written into a real TOML file under ``tmp_path`` and loaded as a user would,
 so that the error is checked to name that file and the dotted field at fault. Errors that only
 the robot can reveal (vector lengths per dof, weights, visibility of the target) come from
-:func:`pbvs_pin.sim.loop.build`.
+:func:`pbvs_pin.sim.setup.build`; the rest from the sections' constructors.
 """
 
 from __future__ import annotations

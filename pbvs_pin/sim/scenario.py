@@ -15,6 +15,7 @@ overrides dotted fields of :meth:`Scenario.to_toml` and parses again.
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Mapping
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 from typing import Any, ClassVar
@@ -82,6 +83,11 @@ class Scenario(Section):
     platform: PlatformSection = field(default_factory=PlatformSection)
     simulation: SimulationSection = field(default_factory=SimulationSection)
     obstacles: tuple[CircleObstacle | BoxObstacle, ...] = ()
+
+    @classmethod
+    def from_toml(cls, table: Mapping[str, Any], source: str) -> Scenario:
+        """The whole file's data: see :func:`parse_scenario`."""
+        return parse_scenario(dict(table), source)
 
     def validate(self) -> None:
         """Name the scenario after its file when it has no name."""
