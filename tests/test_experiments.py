@@ -63,7 +63,7 @@ def test_summary_matches_figures_computed_from_the_log(runs, name):
     assert FINAL_WINDOW == 5.0
     t = log["t"]
     assert summary["scenario"] == name and summary["robot"] == "pioneer_cyton"
-    assert summary["duration_s"] == pytest.approx(load_scenario(name)[""]["duration"], abs=0.05)
+    assert summary["duration_s"] == pytest.approx(load_scenario(name).duration, abs=0.05)
     assert summary["max_abs_error_final_window_px"] == pytest.approx(_max_final_error(log))
     assert summary["max_abs_error_after_transient_px"] == pytest.approx(
         _max_error_after_transient(log)
@@ -124,7 +124,7 @@ def test_experiment2_bounded_while_avoiding_and_posture_recovered(runs):
 
 def test_experiment3_bounded_with_kinematic_error(runs):
     log, _ = runs["experiment3"]
-    assert load_scenario("experiment3")["model_error"]["kinematic_scale"] == 1.2
+    assert load_scenario("experiment3").model_error.kinematic_scale == 1.2
     assert _max_error_after_transient(log) < HALF_IMAGE_HEIGHT_PX
     assert np.min(log["clearance"]) > 0.0
     assert _max_final_error(log) < 12.0
@@ -134,7 +134,7 @@ def test_experiment4_converges_and_storage_does_not_increase(runs):
     log, summary = runs["experiment4"]
     assert _max_final_error(log) < 0.5
     t, storage = log["t"], log["storage"]
-    stop = load_scenario("experiment4")["motion"]["stop_time"]
+    stop = load_scenario("experiment4").motion.stop_time
     after = t >= TRANSIENT_S
     steps = np.diff(storage[after])
     step_times = t[after][1:]

@@ -3,7 +3,7 @@
 Each defect is written into a real TOML file under ``tmp_path`` and loaded as a user would,
 so that the error is checked to name that file and the dotted field at fault. Errors that only
 the robot can reveal (vector lengths per dof, weights, visibility of the target) come from
-:func:`pbvs_pin.sim.loop.build`.
+:func:`pbvs_pin.sim.setup.build`; the rest from the sections' constructors.
 """
 
 from __future__ import annotations
@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 
 from pbvs_pin.cli import main
-from pbvs_pin.exceptions import ScenarioError
-from pbvs_pin.sim.loop import build, simulate
+from pbvs_pin.exceptions import GainError, ScenarioError
+from pbvs_pin.sim.loop import simulate
+from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle
 from pbvs_pin.sim.scenario import (
     SCHEMA,
     load_scenario,
@@ -23,6 +24,8 @@ from pbvs_pin.sim.scenario import (
     scenario_dir,
     shipped_scenarios,
 )
+from pbvs_pin.sim.sections import SECTIONS, CameraSection, ControllerSection, keys_of
+from pbvs_pin.sim.setup import build
 
 EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
 
@@ -42,6 +45,11 @@ xi0 = [-150.0, 20.0, -100.0]
 xi_d = [0.0, 60.0, -60.0]
 """
 """A valid minimal scenario; each test appends or edits one thing."""
+
+
+def _read(value):
+    """A TOML value as a section holds it: arrays become tuples."""
+    return tuple(_read(x) for x in value) if isinstance(value, list) else value
 
 
 def _expect(err: pytest.ExceptionInfo, path, field: str) -> None:
@@ -65,14 +73,19 @@ def test_shipped_scenario_values_come_from_its_file(name):
     assert scenario.name == name
     for section, keys in raw.items():
         if section == "obstacles":
-            assert [dict(o) for o in scenario.obstacles] == keys
+            assert len(scenario.obstacles) == len(keys)
+            for obstacle, table in zip(scenario.obstacles, keys, strict=True):
+                kind = {"circle": CircleObstacle, "box": BoxObstacle}[table.pop("kind")]
+                assert type(obstacle) is kind
+                assert all(getattr(obstacle, k) == v for k, v in table.items()), table
         elif isinstance(keys, dict):
             for key, value in keys.items():
-                assert scenario[section][key] == value, f"{section}.{key}"
+                assert getattr(getattr(scenario, section), key) == _read(value), f"{section}.{key}"
         else:
-            assert scenario[""][section] == keys, section
+            assert getattr(scenario, section) == keys, section
     # Unspecified keys take the schema's defaults.
-    assert scenario["simulation"]["plant_dt"] == SCHEMA["simulation"]["plant_dt"]
+    assert "plant_dt" not in raw.get("simulation", {})
+    assert scenario.simulation.plant_dt == SCHEMA["simulation"]["plant_dt"] == 0.001
 
 
 def test_paper_table_values_in_shipped_scenarios():
@@ -85,17 +98,17 @@ def test_paper_table_values_in_shipped_scenarios():
     }
     for name, (xi0, xi_d) in table.items():
         scenario = load_scenario(name)
-        assert scenario["target"]["xi0"] == xi0 and scenario["target"]["xi_d"] == xi_d
-    assert load_scenario("experiment3")["model_error"]["kinematic_scale"] == 1.2
-    assert load_scenario("experiment4")["estimator"]["kind"] == "exact"
-    assert load_scenario("experiment2")["secondary"]["obstacle_avoidance"] is True
+        assert scenario.target.xi0 == tuple(xi0) and scenario.target.xi_d == tuple(xi_d)
+    assert load_scenario("experiment3").model_error.kinematic_scale == 1.2
+    assert load_scenario("experiment4").estimator.kind == "exact"
+    assert load_scenario("experiment2").secondary.obstacle_avoidance is True
 
 
 def test_with_values_replaces_dotted_fields_and_validates():
     scenario = load_scenario("experiment1")
     changed = scenario.with_values(**{"duration": 3.0, "camera.rate": 60.0})
-    assert changed[""]["duration"] == 3.0 and changed["camera"]["rate"] == 60.0
-    assert scenario[""]["duration"] == 30.0  # the original is untouched
+    assert changed.duration == 3.0 and changed.camera.rate == 60.0
+    assert scenario.duration == 30.0 and scenario.camera.rate == 30.0  # the original is untouched
     assert changed.source == scenario.source
     with pytest.raises(ScenarioError) as err:
         scenario.with_values(**{"camera.rate": -1.0})
@@ -149,6 +162,13 @@ def test_invalid_toml_syntax(tmp_path):
         ("\n[[obstacles]]\nkind = \"cone\"\nx = 1.0\n", "obstacles[0].kind"),
         ("\n[[obstacles]]\nkind = \"box\"\nx = 1.0\ny = 0.0\nsize_x = \"big\"\n",
          "obstacles[0].size_x"),
+        ("\n[[obstacles]]\nkind = \"circle\"\nx = 1.0\ny = 0.0\nradius = -0.2\n",
+         "obstacles[0]"),
+        ("\n[[obstacles]]\nkind = \"circle\"\nx = 1.0\ny = 0.0\n", "obstacles[0].radius"),
+        ("\n[estimator]\nalpha = 2.0\n", "estimator.alpha"),
+        ("\n[estimator]\nbeta = 3.5\n", "estimator.beta"),
+        ("\n[controller]\nweights = [-1.0]\n", "controller.weights"),
+        ("\n[camera]\nfocal_px = inf\n", "camera"),
     ],
 )  # fmt: skip
 def test_invalid_field_names_file_and_field(tmp_path, extra, field):
@@ -175,8 +195,7 @@ def test_xi0_with_two_values(tmp_path):
         ("\n[compensation]\nk_d = [4.0, 4.0]\n", "compensation.k_d"),
         ("\n[controller]\nweights = [[1.0, 0.0], [0.0, 1.0]]\n", "controller.weights"),
         ("\n[robot]\nname = \"no_such_robot\"\n", "robot.name"),
-        ("\n[[obstacles]]\nkind = \"circle\"\nx = 1.0\ny = 0.0\nradius = -0.2\n",
-         "obstacles[0]"),
+        ("\n[robot]\ninitial_arm = [0.1, 0.2]\n", "robot.initial_arm"),  # the Cyton has 3
     ],
 )  # fmt: skip
 def test_invalid_for_the_robot_names_file_and_field(tmp_path, extra, field):
@@ -247,6 +266,53 @@ def test_parse_scenario_names_its_source():
     with pytest.raises(ScenarioError) as err:
         parse_scenario({"camera": {"rate": -2.0}}, "in-memory")
     assert str(err.value).startswith("in-memory: camera.rate:")
+
+
+# ---------------------------------------------------------------- typed sections
+def test_sections_validate_when_built_directly():
+    """A section refuses a bad value itself (GainError naming the key), not only from a file."""
+    assert CameraSection(rate=60).rate == 60.0 and isinstance(CameraSection(rate=60).rate, float)
+    with pytest.raises(GainError) as err:
+        CameraSection(rate=-1.0)
+    assert err.value.field == "rate"
+    with pytest.raises(GainError) as err:
+        ControllerSection(feedback="inverse")
+    assert err.value.field == "feedback"
+    assert ControllerSection(k1=[1.0, 2.0]).k1 == (1.0, 2.0)  # arrays are kept as tuples
+
+
+def test_sections_are_frozen():
+    scenario = load_scenario("experiment1")
+    with pytest.raises(AttributeError):
+        scenario.camera.rate = 60.0
+    with pytest.raises(AttributeError):
+        scenario.duration = 1.0
+
+
+def test_every_key_is_documented_and_in_the_schema():
+    for section in SECTIONS:
+        for spec in keys_of(section):
+            assert spec.metadata["doc"].strip(), f"{section.TABLE}.{spec.name}"
+            assert SCHEMA[section.TABLE][spec.name] == spec.default
+    assert set(SCHEMA) == {"", *(s.TABLE for s in SECTIONS)}
+    assert set(SCHEMA[""]) == {"name", "description", "duration"}
+
+
+@pytest.mark.parametrize("name", EXPERIMENTS)
+def test_to_toml_parses_back_to_the_same_scenario(name):
+    scenario = load_scenario(name)
+    assert parse_scenario(scenario.to_toml(), scenario.source) == scenario
+
+
+def test_unnamed_scenario_takes_its_file_stem(tmp_path):
+    path = _write(tmp_path, BASE.replace('name = "user"\n', ""), name="nameless.toml")
+    assert load_scenario(path).name == "nameless"
+
+
+def test_with_values_refuses_an_unknown_section():
+    with pytest.raises(ScenarioError) as err:
+        load_scenario("experiment1").with_values(**{"nosection.x": 1.0})
+    assert err.value.field == "nosection"
 
 
 # ---------------------------------------------------------------- command line

@@ -158,7 +158,7 @@ def test_derived_channels_match_each_sample_recomputed(obstacle_runs):
     setup = build(obstacle_scenario(True))
     robot, model, target = setup.robot, setup.model, setup.target
     footprint = footprint_points(
-        setup.scenario["platform"]["length"], setup.scenario["platform"]["width"]
+        setup.scenario.platform.length, setup.scenario.platform.width
     )
     f = robot.camera.focal_px
     frame = robot.model.getFrameId(robot.camera_frame)

@@ -93,7 +93,7 @@ def test_grid_runs_ids_and_seeds(spec):
         {"motion.velocity": [0.1, 0.04, 0.0], "estimator.alpha": 0.5},
         {"motion.velocity": [0.1, 0.04, 0.0], "estimator.alpha": 1.5},
     )
-    assert sweep.scenario["camera"]["noise_px"] == 0.0
+    assert sweep.scenario.camera.noise_px == 0.0
     params = {"motion.velocity": [0.1, 0.04, 0.0], "estimator.alpha": 0.5}
     canonical = '{"estimator.alpha":0.5,"motion.velocity":[0.1,0.04,0.0]}'
     expected = hashlib.sha256(canonical.encode()).hexdigest()[:16]
@@ -169,7 +169,7 @@ def test_spec_errors_name_the_file_and_field(tmp_path, text, field):
 def test_shipped_spec_loads():
     sweep = load_sweep("target_speed")
     assert len(sweep.runs) == 6
-    assert sweep.scenario[""]["duration"] == 12.0
+    assert sweep.scenario.duration == 12.0
 
 
 # ------------------------------------------------------------------------ one run

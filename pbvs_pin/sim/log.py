@@ -17,10 +17,12 @@ import numpy as np
 
 from pbvs_pin.manipulability import arm_jacobian, manipulability
 from pbvs_pin.sim.obstacles import clearance
+from pbvs_pin.sim.scenario import obstacle_table
 
 if TYPE_CHECKING:
     from pbvs_pin.control.kinematic import ControlOutput
-    from pbvs_pin.sim.loop import Perception, Setup
+    from pbvs_pin.sim.perception import Perception
+    from pbvs_pin.sim.setup import Setup
 
 CHANNELS = (
     "t", "xi", "xi_true", "xi_d", "u", "v_ref", "v", "q", "arm", "target", "target_estimate",
@@ -163,16 +165,16 @@ class RunRecorder:
         meta = {
             "scenario": scenario.name,
             "source": scenario.source,
-            "robot": scenario["robot"]["name"],
-            "law": scenario["controller"]["law"],
+            "robot": scenario.robot.name,
+            "law": scenario.controller.law,
             "feature_scale": gains.feature_scale,
             "k": list(np.broadcast_to(np.asarray(gains.k, dtype=float), (3,))),
             "posture_target": setup.posture_target.tolist(),
             "velocity_names": list(setup.robot.velocity_names),
             "velocity_limits": setup.robot.velocity_limits.tolist(),
-            "duration": float(scenario[""]["duration"]),
+            "duration": float(scenario.duration),
             "wall_time": wall_time,
-            "obstacles": [dict(o) for o in scenario.obstacles],
+            "obstacles": [obstacle_table(o) for o in scenario.obstacles],
             "target_diameter": setup.target.diameter,
             "target_separation": setup.target.separation,
             "camera": {

@@ -26,13 +26,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import build_robot
 from pbvs_pin.exceptions import PbvsError, ViewerUnavailable
 from pbvs_pin.features import TwoSphereFeatures
 from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.sim.loop import Snapshot, solve_target_start
-from pbvs_pin.sim.scenario import Scenario, load_scenario
+from pbvs_pin.sim.loop import Snapshot
+from pbvs_pin.sim.scenario import Scenario, load_scenario, obstacle_table
+from pbvs_pin.sim.setup import solve_target_start
 from pbvs_pin.validation import positive_number
 from pbvs_pin.viz import server
 from pbvs_pin.viz.frustum import add_camera_frustum, add_camera_triad
@@ -100,16 +100,16 @@ class LiveStats:
 def _start(scenario: Scenario, robot: MobileManipulator) -> tuple[np.ndarray, np.ndarray]:
     """The run's start: configuration and sphere centres (as :func:`simulate` sets them)."""
     q0 = robot.home()
-    arm = scenario["robot"]["initial_arm"]
+    arm = scenario.robot.initial_arm
     if arm is not None:
         with contextlib.suppress(PbvsError):  # the run itself reports a bad value
             q0 = robot.with_arm_positions(q0, arm)
-    target = scenario["target"]
-    features = TwoSphereFeatures(target["diameter"])
+    target = scenario.target
+    features = TwoSphereFeatures(target.diameter)
     top = solve_target_start(
-        robot, q0, features, target["separation"], np.asarray(target["xi0"], dtype=float)
+        robot, q0, features, target.separation, np.asarray(target.xi0, dtype=float)
     )
-    return q0, np.array([top, top - [0.0, 0.0, target["separation"]]])
+    return q0, np.array([top, top - [0.0, 0.0, target.separation]])
 
 
 class LiveView:
@@ -160,15 +160,13 @@ class LiveView:
                 while the scene is drawn.
         """
         self.scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-        spec = self.scenario["camera"]
-        camera = CameraIntrinsics(spec["focal_px"], spec["width"], spec["height"])
-        self.robot = build_robot(self.scenario["robot"]["name"], camera)
-        target = self.scenario["target"]
+        self.robot = build_robot(self.scenario.robot.name, self.scenario.camera.intrinsics())
+        target = self.scenario.target
         facts = RunFacts(
-            target_diameter=target["diameter"],
-            target_separation=target["separation"],
-            desired_points=two_sphere_points(target["xi_d"]),
-            obstacles=self.scenario.obstacles,
+            target_diameter=target.diameter,
+            target_separation=target.separation,
+            desired_points=two_sphere_points(target.xi_d),
+            obstacles=tuple(obstacle_table(o) for o in self.scenario.obstacles),
         )
         q0, centres0 = _start(self.scenario, self.robot)
         timeout = SEND_TIMEOUT if timeout is None else float(timeout)

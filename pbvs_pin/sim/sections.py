@@ -1,0 +1,401 @@
+"""The tables of a scenario file, one frozen dataclass each, validated by their constructors.
+
+Every key is a dataclass field made by :func:`key`, which keeps the key's default, its
+documentation (with its unit) and its check side by side; :class:`Section` applies the checks
+in ``__post_init__`` (type, choices, length, sign), and a section's :meth:`Section.validate`
+adds what the package's own blocks refuse (camera intrinsics, filter gains, servo gains).
+A constructor raises :class:`~pbvs_pin.exceptions.GainError` naming the key;
+:meth:`Section.from_toml` turns it into a :class:`~pbvs_pin.exceptions.ScenarioError` that
+names the file and the dotted field.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import Field, dataclass, field, fields
+from enum import Enum
+from typing import Any, ClassVar, Self
+
+from pbvs_pin.camera import CameraIntrinsics
+from pbvs_pin.control.kinematic import ServoGains
+from pbvs_pin.estimation import AlphaBetaFilter
+from pbvs_pin.exceptions import GainError, ScenarioError
+
+
+class Sign(Enum):
+    """What every number of a key must satisfy (NaN never does)."""
+
+    ANY = "any"
+    POSITIVE = "positive"
+    NON_NEGATIVE = "non-negative"
+
+
+def key(
+    default: Any,
+    doc: str,
+    *,
+    sign: Sign = Sign.ANY,
+    choices: tuple[str, ...] = (),
+    length: int | None = None,
+) -> Any:
+    """A scenario key: a dataclass field with its default, documentation and check.
+
+    The default also fixes the key's type: a string, a boolean, a float (an integer is
+    accepted and converted), an integer (any number is kept as written), or a tuple of numbers
+    (a TOML array, possibly of arrays; ``None`` as default means "array or absent").
+
+    Args:
+        default: Value when the file does not give the key.
+        doc: What the key means, with its unit.
+        sign: Sign every number in the value must have.
+        choices: The allowed strings, if the key is a choice.
+        length: Required number of entries of an array.
+    """
+    metadata = {"doc": doc, "sign": sign, "choices": choices, "length": length}
+    return field(default=default, metadata=metadata)
+
+
+def keys_of(cls: type) -> list[Field]:
+    """The fields of ``cls`` made by :func:`key`, in declaration order."""
+    return [spec for spec in fields(cls) if "doc" in spec.metadata]
+
+
+class Section:
+    """Base of every table: checks each :func:`key` field, then :meth:`validate`.
+
+    Attributes:
+        TABLE: The TOML table's name (``""`` for the file's root keys).
+    """
+
+    TABLE: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        """Check and normalise each key (arrays become tuples), then :meth:`validate`.
+
+        Raises:
+            GainError: If a value is invalid; ``field`` names the key.
+        """
+        for spec in keys_of(type(self)):
+            object.__setattr__(self, spec.name, _checked(spec, getattr(self, spec.name)))
+        self.validate()
+
+    def validate(self) -> None:
+        """Checks across keys; raise GainError naming the key (or none for the table)."""
+
+    @classmethod
+    def from_toml(cls, table: Mapping[str, Any], source: str) -> Self:
+        """Build the section from its TOML table.
+
+        Args:
+            table: Key -> value as read from the file.
+            source: The file (or name), for error messages.
+
+        Raises:
+            ScenarioError: On an unknown key or an invalid value, naming the dotted field.
+        """
+        known = [spec.name for spec in keys_of(cls)]
+        for name in table:
+            if name not in known:
+                raise ScenarioError(
+                    source,
+                    cls.dotted(name),
+                    f"unknown key; expected one of {', '.join(sorted(known))}",
+                )
+        try:
+            return cls(**table)
+        except GainError as err:
+            raise ScenarioError(
+                source, cls.dotted(err.field) if err.field else cls.TABLE, str(err)
+            ) from err
+
+    @classmethod
+    def dotted(cls, name: str) -> str:
+        """The dotted field name of key ``name`` in this table."""
+        return f"{cls.TABLE}.{name}" if cls.TABLE else name
+
+    def to_toml(self) -> dict[str, Any]:
+        """Key -> value as a TOML table (tuples as lists)."""
+        return {spec.name: _plain(getattr(self, spec.name)) for spec in keys_of(type(self))}
+
+
+def _plain(value: Any) -> Any:
+    return [_plain(x) for x in value] if isinstance(value, tuple) else value
+
+
+def is_number(x: Any) -> bool:
+    """A real number, not a boolean, not NaN."""
+    return isinstance(x, int | float) and not isinstance(x, bool) and x == x
+
+
+def _numbers(value: Any) -> list:
+    """Every number of a scalar, an array or an array of arrays."""
+    if not isinstance(value, tuple):
+        return [value]
+    return [y for x in value for y in (x if isinstance(x, tuple) else (x,))]
+
+
+def _checked(spec: Field, value: Any) -> Any:
+    """``value`` converted to the key's type and checked, or a GainError naming the key."""
+    meta = spec.metadata
+    value = _typed(spec.name, value, spec.default)
+    if meta["choices"] and value not in meta["choices"]:
+        raise GainError(f"expected one of {meta['choices']}, got {value!r}", spec.name)
+    if meta["length"] is not None and len(value) != meta["length"]:
+        shown = _plain(value)
+        raise GainError(f"expected {meta['length']} values, got {len(value)}: {shown}", spec.name)
+    if value is None:
+        return value
+    numbers = _numbers(value)
+    if meta["sign"] is Sign.POSITIVE and not all(is_number(x) and x > 0 for x in numbers):
+        raise GainError(f"expected positive values, got {_plain(value)}", spec.name)
+    if meta["sign"] is Sign.NON_NEGATIVE and not all(is_number(x) and x >= 0 for x in numbers):
+        raise GainError(f"expected values >= 0, got {_plain(value)}", spec.name)
+    return value
+
+
+def _typed(name: str, value: Any, default: Any) -> Any:
+    """Coerce ``value`` to the default's type (int -> float allowed), or a GainError."""
+    if default is None or isinstance(default, tuple):
+        if default is None and value is None:
+            return None
+        if not isinstance(value, list | tuple) or not all(
+            is_number(x) or (isinstance(x, list | tuple) and all(is_number(y) for y in x))
+            for x in value
+        ):
+            raise GainError(f"expected a list of numbers, got {value!r}", name)
+        return tuple(tuple(x) if isinstance(x, list | tuple) else x for x in value)
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise GainError(f"expected true or false, got {value!r}", name)
+        return value
+    if isinstance(default, int | float):
+        if not is_number(value):
+            raise GainError(f"expected a number, got {value!r}", name)
+        return float(value) if isinstance(default, float) else value
+    if not isinstance(value, str):
+        raise GainError(f"expected a string, got {value!r}", name)
+    return value
+
+
+POSITIVE, NON_NEGATIVE = Sign.POSITIVE, Sign.NON_NEGATIVE
+
+
+@dataclass(frozen=True)
+class RobotSection(Section):
+    """``[robot]``: which robot, and where its arm starts."""
+
+    TABLE: ClassVar[str] = "robot"
+    name: str = key("pioneer_cyton", "Shipped robot name or URDF path.")
+    initial_arm: tuple[float, ...] | None = key(
+        None, "Arm joint positions at the start [rad or m], one per arm joint; home if absent."
+    )
+
+
+@dataclass(frozen=True)
+class ModelErrorSection(Section):
+    """``[model_error]``: how the controller's model differs from the true robot."""
+
+    TABLE: ClassVar[str] = "model_error"
+    kinematic_scale: float = key(
+        1.0, "Factor on the model's link lengths (1.2: 20 % kinematic error).", sign=POSITIVE
+    )
+    mass_scale: float = key(1.0, "Factor on the model's masses and inertias.", sign=POSITIVE)
+
+
+@dataclass(frozen=True)
+class CameraSection(Section):
+    """``[camera]``: intrinsics and the image stream."""
+
+    TABLE: ClassVar[str] = "camera"
+    focal_px: float = key(600.0, "Focal length f [px].", sign=POSITIVE)
+    width: int = key(628, "Image width [px].", sign=POSITIVE)
+    height: int = key(582, "Image height [px].", sign=POSITIVE)
+    rate: float = key(30.0, "Frame rate [Hz].", sign=POSITIVE)
+    latency: float = key(0.0, "Delay from capture to delivery [s].", sign=NON_NEGATIVE)
+    noise_px: float = key(
+        0.0, "Standard deviation of the image-point noise [px].", sign=NON_NEGATIVE
+    )
+
+    def intrinsics(self) -> CameraIntrinsics:
+        """The pinhole intrinsics."""
+        return CameraIntrinsics(self.focal_px, self.width, self.height)
+
+    def validate(self) -> None:
+        """The intrinsics must be valid (GainError otherwise)."""
+        self.intrinsics()
+
+
+@dataclass(frozen=True)
+class TargetSection(Section):
+    """``[target]``: two spheres, one above the other, and the features asked for."""
+
+    TABLE: ClassVar[str] = "target"
+    diameter: float = key(0.05, "Diameter of each sphere [m].", sign=POSITIVE)
+    separation: float = key(0.10, "Distance between the sphere centres [m].", sign=POSITIVE)
+    xi0: tuple[float, ...] = key(
+        (-150.0, 20.0, -100.0), "Features xi(0) = [u1, v1, v2] at the start [px].", length=3
+    )
+    xi_d: tuple[float, ...] = key(
+        (0.0, 60.0, -60.0), "Desired features xi_d = [u1, v1, v2] [px].", length=3
+    )
+
+
+@dataclass(frozen=True)
+class MotionSection(Section):
+    """``[motion]``: how the target moves."""
+
+    TABLE: ClassVar[str] = "motion"
+    kind: str = key(
+        "still",
+        "still, line_then_stop (velocity until stop_time) or weave (line plus a sine).",
+        choices=("still", "line_then_stop", "weave"),
+    )
+    velocity: tuple[float, ...] = key(
+        (0.0, 0.0, 0.0), "Velocity in the world frame [m/s].", length=3
+    )
+    amplitude: tuple[float, ...] = key(
+        (0.0, 0.0, 0.0), "Half peak-to-peak of the weave per world axis [m].", length=3
+    )
+    frequency: float = key(0.0, "Frequency of the weave [Hz].", sign=NON_NEGATIVE)
+    stop_time: float = key(0.0, "Time the target stops [s].", sign=NON_NEGATIVE)
+
+
+@dataclass(frozen=True)
+class EstimatorSection(Section):
+    """``[estimator]``: the target-velocity estimate ``phat_dot``."""
+
+    TABLE: ClassVar[str] = "estimator"
+    kind: str = key(
+        "alpha_beta",
+        "alpha_beta (filter on the measured position) or exact (the true velocity).",
+        choices=("alpha_beta", "exact"),
+    )
+    alpha: float = key(0.5, "Position gain of the alpha-beta filter, 0 < alpha <= 1.")
+    beta: float = key(0.1, "Velocity gain of the alpha-beta filter, 0 < beta < 4 - 2 alpha.")
+
+    def filter(self) -> AlphaBetaFilter:
+        """A fresh alpha-beta filter with these gains."""
+        return AlphaBetaFilter(self.alpha, self.beta)
+
+    def validate(self) -> None:
+        """The filter's gains must be stable (GainError naming alpha or beta)."""
+        self.filter()
+
+
+@dataclass(frozen=True)
+class ControllerSection(Section):
+    """``[controller]``: the kinematic controller of eq. (34) (or classic IBVS)."""
+
+    TABLE: ClassVar[str] = "controller"
+    law: str = key(
+        "passivity", "passivity (eq. 34) or ibvs (classic baseline).", choices=("passivity", "ibvs")
+    )
+    k: tuple[float, ...] = key((0.15,), "k_i of K_c [1/s]: 1 or 3 values.", sign=POSITIVE)
+    k1: tuple[float, ...] = key(
+        (0.7, 1.0, 0.1, 0.1, 0.1),
+        "Diagonal of k_1, null-space amplitude [m/s or rad/s]: 1 or n values (5 values for "
+        "2 base + 3 arm dof fit any robot: the last is repeated for every arm joint).",
+        sign=POSITIVE,
+    )
+    k2: tuple[float, ...] = key(
+        (0.2,), "Diagonal of k_2, null-space slope [1/unit of Lambda]: 1 or n values.",
+        sign=POSITIVE,
+    )  # fmt: skip
+    feature_scale: float = key(150.0, "Pixels per controller feature unit [px].", sign=POSITIVE)
+    weights: tuple = key(
+        (1.0,),
+        "W: its positive diagonal (1 or n values) or the full n x n symmetric positive "
+        "definite matrix.",
+    )
+    feedback: str = key(
+        "transpose",
+        "transpose (-J^T K_c e, the paper's) or pseudoinverse (-J# K_c e).",
+        choices=("transpose", "pseudoinverse"),
+    )
+    ibvs_gain: float = key(0.5, "lambda of the classic IBVS law [1/s].", sign=POSITIVE)
+    rate: float = key(100.0, "Control rate [Hz].", sign=POSITIVE)
+
+    def gains(self) -> ServoGains:
+        """The servo gains as written (before they are fitted to a robot's dof)."""
+        return ServoGains(
+            k=self.k,
+            k1=self.k1,
+            k2=self.k2,
+            feature_scale=self.feature_scale,
+            weights=self.weights,
+            use_pseudoinverse_feedback=self.feedback == "pseudoinverse",
+        )
+
+    def validate(self) -> None:
+        """The gains must be valid servo gains (GainError naming the key)."""
+        self.gains()
+
+
+@dataclass(frozen=True)
+class CompensationSection(Section):
+    """``[compensation]``: the dynamic compensation of eq. (20)."""
+
+    TABLE: ClassVar[str] = "compensation"
+    mode: str = key(
+        "platform",
+        "off, platform (the base's dof) or all (every dof).",
+        choices=("off", "platform", "all"),
+    )
+    k_d: tuple[float, ...] = key((4.0,), "k_d [1/s]: 1 or n values.", sign=POSITIVE)
+    derivative_time_constant: float = key(
+        0.05, "Time constant of the command's filtered derivative [s].", sign=POSITIVE
+    )
+
+
+@dataclass(frozen=True)
+class SecondarySection(Section):
+    """``[secondary]``: the secondary objectives of eqs. (16)-(19)."""
+
+    TABLE: ClassVar[str] = "secondary"
+    obstacle_avoidance: bool = key(False, "Avoid obstacles seen by the laser, eqs. (17)-(18).")
+    posture: bool = key(False, "Pull the arm to maximum manipulability, eq. (19).")
+    joint_limits: bool = key(True, "Keep the arm joints away from their limits.")
+    k_uobs: float = key(0.5, "k_uobs of eq. (17) [1/(rad s)].", sign=POSITIVE)
+    k_wobs: float = key(0.9, "k_wobs of eq. (18) [1/s].", sign=POSITIVE)
+    d0: float = key(1.0, "Distance d_0 at which avoidance starts [m].", sign=POSITIVE)
+    impedance_mass: float = key(0.5, "Inertia m of the impedance Z [s].", sign=POSITIVE)
+    impedance_damping: float = key(1.0, "Damping b of the impedance Z [1].", sign=POSITIVE)
+    k_lambda: float = key(1.0, "k_Lambda of eq. (19) [1/s].", sign=POSITIVE)
+
+
+@dataclass(frozen=True)
+class LaserSection(Section):
+    """``[laser]``: the platform's planar rangefinder."""
+
+    TABLE: ClassVar[str] = "laser"
+    rate: float = key(20.0, "Scan rate [Hz].", sign=POSITIVE)
+    beams: int = key(181, "Rays per scan.", sign=POSITIVE)
+    field_of_view: float = key(3.14159, "Angle covered by the rays [rad].", sign=POSITIVE)
+    max_range: float = key(8.0, "Longest measured distance [m].", sign=POSITIVE)
+
+
+@dataclass(frozen=True)
+class PlatformSection(Section):
+    """``[platform]``: the base's footprint, for the clearance."""
+
+    TABLE: ClassVar[str] = "platform"
+    length: float = key(0.50, "Footprint length [m].", sign=POSITIVE)
+    width: float = key(0.49, "Footprint width [m].", sign=POSITIVE)
+
+
+@dataclass(frozen=True)
+class SimulationSection(Section):
+    """``[simulation]``: integration, logging and randomness."""
+
+    TABLE: ClassVar[str] = "simulation"
+    plant_dt: float = key(0.001, "Integration step of the plant [s].", sign=POSITIVE)
+    log_rate: float = key(50.0, "Samples per second in the log [Hz].", sign=POSITIVE)
+    seed: int = key(0, "Seed of the camera's pixel-noise generator.")
+
+
+SECTIONS: tuple[type[Section], ...] = (
+    RobotSection, ModelErrorSection, CameraSection, TargetSection, MotionSection,
+    EstimatorSection, ControllerSection, CompensationSection, SecondarySection, LaserSection,
+    PlatformSection, SimulationSection,
+)  # fmt: skip
+"""Every table of a scenario file, in the order of the key reference."""

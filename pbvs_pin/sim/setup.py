@@ -1,0 +1,244 @@
+"""Everything a run is built from: the true robot, the controller's model and every block.
+
+:func:`build` turns a parsed :class:`~pbvs_pin.sim.scenario.Scenario` into a :class:`Setup`.
+The scenario's sections have checked every value on their own; what only the robot can reveal
+(the robot itself, per-dof vector lengths, the size of ``W``, the arm's start, the target's
+visibility at the start) is checked here and reported as a ScenarioError naming the field.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from pbvs_pin.camera import CameraIntrinsics
+from pbvs_pin.catalogue import build_robot
+from pbvs_pin.control.compensation import Compensation, DynamicCompensator
+from pbvs_pin.control.ibvs import ClassicIbvs
+from pbvs_pin.control.kinematic import PassivityController, ServoGains
+from pbvs_pin.control.secondary import (
+    ArmPosture,
+    JointLimitAvoidance,
+    ObstacleAvoidance,
+    SecondaryObjective,
+)
+from pbvs_pin.dynamics import VelocityLoop
+from pbvs_pin.estimation import AlphaBetaFilter
+from pbvs_pin.exceptions import PbvsError
+from pbvs_pin.features import TwoSphereFeatures
+from pbvs_pin.manipulability import max_manipulability_posture
+from pbvs_pin.plant import Plant
+from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.sim.obstacles import Laser, Obstacle
+from pbvs_pin.sim.scenario import Scenario
+from pbvs_pin.sim.sections import MotionSection
+from pbvs_pin.sim.targets import LineThenStop, Still, TargetMotion, TwoSphereTarget, Weave
+from pbvs_pin.sim.vision import CameraSensor
+
+
+def _motion(spec: MotionSection) -> TargetMotion:
+    velocity = tuple(spec.velocity)
+    if spec.kind == "line_then_stop":
+        return LineThenStop(velocity, spec.stop_time)
+    if spec.kind == "weave":
+        return Weave(velocity, tuple(spec.amplitude), spec.frequency, spec.stop_time)
+    return Still()
+
+
+def solve_target_start(
+    robot: MobileManipulator,
+    q: np.ndarray,
+    features: TwoSphereFeatures,
+    separation: float,
+    xi0: np.ndarray,
+) -> np.ndarray:
+    """Upper sphere centre [m] whose features at ``q`` equal ``xi0`` [px].
+
+    Least squares from a point 1 m ahead of the camera; the image of two vertically aligned
+    spheres fixes all three coordinates once their separation is known.
+    """
+    pose = robot.camera_pose(q)
+    guess = pose.act(np.array([0.0, 0.0, 1.0]))
+
+    def residual(top: np.ndarray) -> np.ndarray:
+        centres = np.array([top, top - [0.0, 0.0, separation]])
+        image, _ = robot.camera.project_world(pose, centres, min_depth=1e-3)
+        return image.reshape(-1)[features.rows] - xi0
+
+    return least_squares(residual, guess, xtol=1e-12, ftol=1e-12).x
+
+
+@dataclass
+class Setup:
+    """Everything a run is built from (true and controller-side objects)."""
+
+    scenario: Scenario
+    robot: MobileManipulator
+    model: MobileManipulator
+    plant: Plant
+    target: TwoSphereTarget
+    features: TwoSphereFeatures
+    sensor: CameraSensor
+    controller: PassivityController
+    compensator: DynamicCompensator
+    objectives: list[SecondaryObjective]
+    obstacles: list[Obstacle]
+    laser: Laser
+    posture_target: np.ndarray
+    xi_d: np.ndarray
+    estimator: AlphaBetaFilter
+
+
+def build(scenario: Scenario) -> Setup:
+    """Build the true robot, the controller's model and every block of the loop.
+
+    Raises:
+        ScenarioError: If a value is invalid for this robot, or the target is not visible
+            at the start.
+    """
+    camera = scenario.camera.intrinsics()
+    robot = _robot(scenario, camera)
+    errors = scenario.model_error
+    model = robot.with_model_error(errors.kinematic_scale, errors.mass_scale)
+    q0 = _start(scenario, robot)
+    plant = Plant(robot, VelocityLoop.from_time_constants(robot), q0, scenario.simulation.plant_dt)
+    target_spec = scenario.target
+    features = TwoSphereFeatures(target_spec.diameter)
+    xi0 = np.asarray(target_spec.xi0, dtype=float)
+    top = solve_target_start(robot, q0, features, target_spec.separation, xi0)
+    target = TwoSphereTarget(
+        top, target_spec.diameter, target_spec.separation, _motion(scenario.motion)
+    )
+    _check_start_visible(scenario, robot, q0, target, features, xi0)
+    rng = np.random.default_rng(scenario.simulation.seed)
+    spec = scenario.camera
+    sensor = CameraSensor(camera, target.diameter, spec.rate, spec.latency, spec.noise_px, rng)
+    controller = _controller(scenario, model)
+    comp = scenario.compensation
+    compensator = DynamicCompensator(
+        model,
+        VelocityLoop.from_time_constants(model),
+        Compensation(comp.mode),
+        _vector(scenario, "compensation.k_d", comp.k_d, model.n),
+        comp.derivative_time_constant,
+    )
+    posture_target = max_manipulability_posture(model)
+    objectives = _objectives(scenario, model, posture_target)
+    laser_spec = scenario.laser
+    laser = Laser(laser_spec.field_of_view, int(laser_spec.beams), laser_spec.max_range)
+    return Setup(
+        scenario, robot, model, plant, target, features, sensor, controller, compensator,
+        objectives, list(scenario.obstacles), laser, posture_target,
+        np.asarray(target_spec.xi_d, dtype=float),
+        scenario.estimator.filter(),
+    )  # fmt: skip
+
+
+def _robot(scenario: Scenario, camera: CameraIntrinsics) -> MobileManipulator:
+    """The true robot, or a ScenarioError naming ``robot.name`` (unknown name, bad URDF)."""
+    try:
+        return build_robot(scenario.robot.name, camera)
+    except PbvsError as err:
+        raise scenario.error("robot.name", str(err)) from err
+
+
+def _start(scenario: Scenario, robot: MobileManipulator) -> np.ndarray:
+    """Initial configuration: home, with the scenario's arm positions if it gives them."""
+    q0 = robot.home()
+    arm = scenario.robot.initial_arm
+    if arm is None:
+        return q0
+    if len(arm) != robot.n_arm:
+        raise scenario.error(
+            "robot.initial_arm", f"expected {robot.n_arm} values for this robot, got {len(arm)}"
+        )
+    return robot.with_arm_positions(q0, arm)
+
+
+def _vector(scenario: Scenario, field: str, values: tuple, n: int) -> np.ndarray:
+    """A per-dof vector given as 1 or n values, or a ScenarioError."""
+    array = np.asarray(values, dtype=float)
+    if array.size == 1:
+        return np.full(n, float(array[0]))
+    if array.size != n:
+        raise scenario.error(field, f"expected 1 or {n} values for this robot, got {array.size}")
+    return array
+
+
+def _controller(scenario: Scenario, model: MobileManipulator) -> PassivityController:
+    """The kinematic controller, its gains fitted to the model's dof."""
+    spec = scenario.controller
+    n = model.n
+    gains = ServoGains(
+        k=tuple(_vector(scenario, "controller.k", spec.k, 3)),
+        k1=tuple(_vector(scenario, "controller.k1", _per_dof(spec.k1, model), n)),
+        k2=tuple(_vector(scenario, "controller.k2", _per_dof(spec.k2, model), n)),
+        feature_scale=spec.feature_scale,
+        weights=_weights(scenario, spec.weights, n),
+        use_pseudoinverse_feedback=spec.feedback == "pseudoinverse",
+    )
+    if spec.law == "ibvs":
+        return ClassicIbvs(spec.ibvs_gain, model.velocity_limits, gains)
+    return PassivityController(gains, model.velocity_limits)
+
+
+def _per_dof(values: tuple, model: MobileManipulator) -> tuple:
+    """Gains written for the paper's robot (2 base + 3 arm values) fit any robot.
+
+    The base values are kept and the last arm value is repeated for every arm joint.
+    """
+    if len(values) == 5 and model.n != 5 and model.n_base == 2:
+        return (*values[:2], *([values[-1]] * model.n_arm))
+    return values
+
+
+def _weights(scenario: Scenario, weights: tuple, n: int) -> tuple:
+    """``W`` as a diagonal or a full matrix, checked for size (the section checked the rest)."""
+    if weights and isinstance(weights[0], tuple):
+        if len(weights) != n or any(len(row) != n for row in weights):
+            raise scenario.error("controller.weights", f"expected a {n} x {n} matrix")
+        return tuple(tuple(row) for row in weights)
+    return tuple(_vector(scenario, "controller.weights", weights, n))
+
+
+def _objectives(
+    scenario: Scenario, model: MobileManipulator, posture_target: np.ndarray
+) -> list[SecondaryObjective]:
+    spec = scenario.secondary
+    objectives: list[SecondaryObjective] = []
+    if spec.obstacle_avoidance:
+        objectives.append(
+            ObstacleAvoidance(
+                spec.k_uobs, spec.k_wobs, spec.d0, spec.impedance_mass, spec.impedance_damping
+            )
+        )
+    if spec.posture:
+        objectives.append(ArmPosture(posture_target, spec.k_lambda))
+    if spec.joint_limits:
+        lower, upper = model.arm_position_limits()
+        objectives.append(JointLimitAvoidance(lower, upper))
+    return objectives
+
+
+def _check_start_visible(
+    scenario: Scenario,
+    robot: MobileManipulator,
+    q0: np.ndarray,
+    target: TwoSphereTarget,
+    features: TwoSphereFeatures,
+    xi0: np.ndarray,
+) -> None:
+    """ScenarioError unless both spheres are in front of the camera, in the image, at xi0."""
+    image, depths = robot.camera.project_world(robot.camera_pose(q0), target.centres(0.0))
+    if np.any(depths <= 0.05):
+        raise scenario.error("target.xi0", "the target would be behind the camera at the start")
+    if not robot.camera.in_image(image) or not np.allclose(
+        image.reshape(-1)[features.rows], xi0, atol=0.5
+    ):
+        raise scenario.error(
+            "target.xi0",
+            f"{xi0.tolist()} px is not visible in a {robot.camera.width} x "
+            f"{robot.camera.height} px image from the initial configuration",
+        )
