@@ -121,26 +121,6 @@ class Scenario(Section):
             table[name] = value
         return parse_scenario(raw, self.source)
 
-    @property
-    def values(self) -> dict[str, dict[str, Any]]:
-        """Section -> key -> value, the root keys under ``""`` (no obstacles).
-
-        Transitional: only :mod:`pbvs_pin.sweep` reads this (its fingerprint); remove it once
-        the sweep reads :meth:`to_toml`.
-        """
-        raw = self.to_toml()
-        del raw["obstacles"]
-        tables = {section.TABLE: raw.pop(section.TABLE) for section in SECTIONS}
-        return {"": raw, **tables}
-
-    def __getitem__(self, section: str) -> dict[str, Any]:
-        """One section's values as a table.
-
-        Transitional: only :mod:`pbvs_pin.sweep` reads the scenario by string keys; remove
-        this once it reads attributes (``scenario.motion.kind``).
-        """
-        return self.values[section]
-
 
 SCHEMA: dict[str, dict[str, Any]] = {
     "": {spec.name: spec.default for spec in keys_of(Scenario)},

@@ -93,8 +93,8 @@ def run_one(task: RunTask) -> tuple[dict[str, Any], dict[str, Any]]:
         changes = dict(task.params)
         changes.setdefault("simulation.seed", task.seed)
         scenario = task.scenario.with_values(**changes)
-        motion = scenario["motion"]
-        speed = 0.0 if motion["kind"] == "still" else float(np.linalg.norm(motion["velocity"]))
+        motion = scenario.motion
+        speed = 0.0 if motion.kind == "still" else float(np.linalg.norm(motion.velocity))
         row["target_speed_m_s"] = speed
         log = simulate(scenario, observer=watchdog)
     except (_RunTimeout, _RunDiverged) as err:

@@ -199,8 +199,7 @@ def load_sweep(name_or_path: str | Path) -> SweepSpec:
     fingerprint = hashlib.sha256(
         _canonical(
             {
-                "scenario": scenario.values,
-                "obstacles": list(scenario.obstacles),
+                "scenario": scenario.to_toml(),
                 "seed": settings["seed"],
                 "epsilon": settings["epsilon"],
             }
