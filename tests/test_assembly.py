@@ -151,26 +151,6 @@ def test_mount_as_vector_or_se3_gives_same_model(assembled, name):
     np.testing.assert_allclose(a.camera_jacobian(q), b.camera_jacobian(q), atol=1e-12)
 
 
-@pytest.mark.parametrize(
-    ("name", "ahead", "height"),
-    [
-        ("pioneer_ur5", 0.45, 0.75),
-        ("pioneer_panda", 0.45, 0.75),
-        ("pioneer_z1", 0.45, 0.75),
-        ("pioneer_kinova", 0.45, 0.75),
-        ("pioneer_xarm7", 0.45, 0.75),
-        ("tiago", 0.6, 1.0),
-    ],
-)
-def test_shipped_home_camera_looks_forward(load, name, ahead, height):
-    """catalogue.py: at home the camera is ahead and above the platform, looking forward."""
-    robot = load(name)
-    pose = robot.camera_pose(robot.home())
-    np.testing.assert_allclose(pose.translation, [ahead, 0.0, height], atol=5e-3)
-    np.testing.assert_allclose(pose.rotation[:, 2], [1, 0, 0], atol=1e-2)  # optical z forward
-    np.testing.assert_allclose(pose.rotation[:, 1], [0, 0, -1], atol=1e-2)  # image y down
-
-
 def test_reference_robot_chain(cyton):
     assert cyton.n == 5
     assert cyton.arm_joint_names == (
