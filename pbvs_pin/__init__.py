@@ -14,6 +14,7 @@ from pbvs_pin.exceptions import (
     DriveAxleNotFound,
     FrameNotFound,
     GainError,
+    HomeNotFound,
     NoMovableJoint,
     NonFiniteValue,
     PbvsError,
@@ -25,6 +26,7 @@ from pbvs_pin.exceptions import (
     ViewerUnavailable,
 )
 from pbvs_pin.features import FeatureSet, ImageMeasurement, ImagePointFeatures, TwoSphereFeatures
+from pbvs_pin.home import HomeCriteria, compute_home
 from pbvs_pin.manipulability import (
     arm_manipulability,
     manipulability,
@@ -44,6 +46,8 @@ __all__ = [
     "FixedBase",
     "FrameNotFound",
     "GainError",
+    "HomeCriteria",
+    "HomeNotFound",
     "ImageMeasurement",
     "ImagePointFeatures",
     "MobileManipulator",
@@ -60,6 +64,7 @@ __all__ = [
     "VelocityLoop",
     "ViewerUnavailable",
     "arm_manipulability",
+    "compute_home",
     "load_robot",
     "manipulability",
     "max_manipulability_posture",

@@ -32,6 +32,15 @@ from pbvs_pin.exceptions import (
 )
 from pbvs_pin.shipped import shipped_urdf
 
+_DRIVE_ADVICE = (
+    "The drive needs wheel_radius [m], track [m] (distance between the left and right wheels) "
+    "and wheel_speed_limit [rad/s]: add them to the URDF (wheel joints with <limit "
+    "velocity=...>, wheel links with cylinder or sphere geometry), or give them explicitly "
+    "with base=DifferentialDrive(wheel_radius=..., track=..., max_wheel_speed=...), whose "
+    "planar joint then sits at the platform's root link"
+)
+"""What every DriveAxleNotFound message ends with: the drive parameters and where they go."""
+
 _AXIS_TOLERANCE = 0.99
 """|cos| between a wheel axis and the platform's y axis above which it counts as a wheel."""
 
@@ -235,7 +244,8 @@ def find_drive_axle(source: UrdfSource) -> DriveAxle:
             source.label,
             "no usable drive axle: expected continuous or revolute wheel joints with their "
             "axis along the platform's y axis, hanging from the root link "
-            f"{root!r} through fixed joints, on both sides (y > 0 and y < 0); found {found}",
+            f"{root!r} through fixed joints, on both sides (y > 0 and y < 0); found {found}. "
+            f"{_DRIVE_ADVICE}",
         )
     radii, speeds = [], []
     for joint, _ in wheels:
@@ -243,11 +253,14 @@ def find_drive_axle(source: UrdfSource) -> DriveAxle:
         if radius is None:
             raise DriveAxleNotFound(
                 source.label,
-                f"wheel link {joint.child!r} has no cylinder or sphere geometry giving its radius",
+                f"wheel link {joint.child!r} has no cylinder or sphere geometry giving its "
+                f"radius (wheel_radius). {_DRIVE_ADVICE}",
             )
         if joint.limit is None or not joint.limit.velocity:
             raise DriveAxleNotFound(
-                source.label, f"wheel joint {joint.name!r} has no <limit velocity=...>"
+                source.label,
+                f"wheel joint {joint.name!r} has no <limit velocity=...> giving the wheel speed "
+                f"limit (wheel_speed_limit). {_DRIVE_ADVICE}",
             )
         radii.append(radius)
         speeds.append(float(joint.limit.velocity))
@@ -348,6 +361,43 @@ def mount_arm(platform: UrdfSource, arm: UrdfSource, mount: pin.SE3) -> dict[str
     platform.package_dirs = tuple(dict.fromkeys(platform.package_dirs + arm.package_dirs))
     platform.label = f"{platform.label} + {arm.label}"
     return names
+
+
+def _resolve_package_uris(robot: yourdfpy.Robot, package_dirs: tuple[str, ...]) -> None:
+    """Rewrite ``package://`` mesh URIs that exist under ``package_dirs`` as absolute paths."""
+    prefix = "package://"
+    for link in robot.links:
+        for element in [*link.visuals, *link.collisions]:
+            mesh = element.geometry.mesh if element.geometry is not None else None
+            if mesh is None or mesh.filename is None or not mesh.filename.startswith(prefix):
+                continue
+            relative = mesh.filename[len(prefix) :]
+            for folder in package_dirs:
+                candidate = Path(folder) / relative
+                if candidate.is_file():
+                    mesh.filename = str(candidate.resolve())
+                    break
+
+
+def write_urdf(source: UrdfSource, path: str | Path) -> Path:
+    """Write a description as one self-contained URDF file.
+
+    Mesh file names are made absolute (``package://`` URIs resolved against the source's
+    package folders), so the file loads from any folder.
+
+    Args:
+        source: The description (not modified).
+        path: File to write.
+
+    Returns:
+        The path written.
+    """
+    robot = copy.deepcopy(source.robot)
+    _resolve_package_uris(robot, source.package_dirs)
+    path = Path(path)
+    xml = to_xml(UrdfSource(robot, source.label, source.package_dirs))
+    path.write_bytes(xml if isinstance(xml, bytes) else xml.encode())  # yourdfpy gives bytes
+    return path
 
 
 def to_xml(source: UrdfSource) -> str:

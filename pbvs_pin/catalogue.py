@@ -2,9 +2,11 @@
 
 Each entry says how to build the robot and gives a *home* posture of its arm in which the
 camera looks horizontally forward (optical z along the platform's x, image upright). The homes
-of the example-robot-data arms were solved once by inverse kinematics for a camera 0.45 m
-ahead of the platform centre and 0.75 m above the floor (TIAGo: 0.6 m and 1.0 m), within the
-joint limits. The reference robot's home is all zeros, as in the paper's experiments.
+are :func:`pbvs_pin.home.compute_home` with its default criteria, rounded to 1e-4 rad (or m):
+camera 0.5-1.0 m above the floor, 0.3-0.7 m ahead, each joint at least 10% of its range from
+its limits, largest manipulability; ``tests/test_home.py`` checks them against the criteria.
+The reference robot's home is all zeros, as in the paper's experiments, which is also what
+compute_home gives for it.
 """
 
 from __future__ import annotations
@@ -49,38 +51,38 @@ class Recipe:
 
 RECIPES = {
     "pioneer_ur5": Recipe(
-        "pioneer3at", "ur5", "tool0", (0,) * 6, (-0.421, 0.125, -2.165, -1.101, -1.149, 0.0)
+        "pioneer3at", "ur5", "tool0", (0,) * 6, (-2.9485, -1.8797, -1.5422, 0.2803, 1.3777, 0.0)
     ),
     "pioneer_panda": Recipe(
         "pioneer3at",
         "panda",
         "panda_hand_tcp",
         (0,) * 6,
-        (-0.402, -1.298, 0.578, -2.949, 2.469, 2.825, 0.428),
+        (-1.9003, -1.4102, 0.8454, -1.9898, 2.2748, 2.0776, 1.4413),
     ),
     "pioneer_z1": Recipe(
-        "pioneer3at", "z1", "link06", OPTICAL_FROM_BODY, (0.0, 1.591, -1.454, -0.137, 0.0, 0.0)
+        "pioneer3at", "z1", "link06", OPTICAL_FROM_BODY, (0.0, 2.3915, -1.615, -0.7765, 0.0, 0.0)
     ),
     "pioneer_kinova": Recipe(
         "pioneer3at",
         "kinova",
         "j2s6s200_end_effector",
         (0,) * 6,
-        (0.903, 1.316, 1.448, 2.234, 1.489, -1.675),
+        (1.1073, 2.0258, 4.3866, -1.9119, 5.0325, -0.8456),
     ),
     "pioneer_xarm7": Recipe(
         "pioneer3at",
         "xarm7",
         "link_eef",
         (0,) * 6,
-        (0.442, -0.415, -0.303, 0.517, 0.256, -0.692, 1.249),
+        (-0.0263, -0.933, 0.0332, 0.9223, 0.0231, 0.2842, 1.5753),
     ),
     "tiago": Recipe(
         "tiago",
         None,
         "arm_tool_link",
         OPTICAL_FROM_BODY,
-        (0.0, 0.698, 1.091, -1.492, 1.528, -0.476, -0.608, -0.003),
+        (0.3111, 1.3533, -0.9546, -1.2786, 0.2138, 0.1706, 0.9925, -1.6753),
         mount=(0,) * 6,
     ),
 }

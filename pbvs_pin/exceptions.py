@@ -158,3 +158,25 @@ class ViewerUnavailable(PbvsError):
         self.reason = reason
         self.advice = advice
         super().__init__(f"Meshcat viewer unavailable: {reason}; {advice}")
+
+
+class HomeNotFound(PbvsError):
+    """No arm posture makes the camera look forward: the robot has no computable home."""
+
+    def __init__(self, source: str, forward_error_deg: float, criteria: object) -> None:
+        """Name the robot, the best forward error reached and the criteria used.
+
+        Args:
+            source: File or name the robot was built from.
+            forward_error_deg: Smallest angle between the optical axis and the platform's x
+                axis that was found [deg].
+            criteria: The :class:`pbvs_pin.home.HomeCriteria` in force.
+        """
+        self.source = source
+        self.forward_error_deg = forward_error_deg
+        super().__init__(
+            f"{source}: no arm posture points the camera forward: the optical axis stays "
+            f"{forward_error_deg:.1f} deg from the platform's x axis (criteria: {criteria}); "
+            "check camera_link and camera_pose (optical frame: z forward, x right, y down), or "
+            "give the home posture explicitly"
+        )

@@ -13,6 +13,7 @@ velocities ``v = [base velocities, arm joint rates]`` (``n`` entries), with ``v_
 from __future__ import annotations
 
 import copy
+from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
@@ -27,6 +28,7 @@ from pbvs_pin.assembly import (
     load_urdf,
     mount_arm,
     to_xml,
+    write_urdf,
 )
 from pbvs_pin.base import BaseAdapter, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics
@@ -230,13 +232,38 @@ class MobileManipulator:
         base: str | BaseAdapter,
         camera: CameraIntrinsics | None,
     ) -> MobileManipulator:
+        description = copy.deepcopy(source)  # as built, before the base adapter edits it
         adapter = _base_adapter(base, source)
         xml = to_xml(source)
         model = _build_model(xml, source.label, adapter.root_joint())
         visuals = _build_visuals(model, xml, source.label, source.package_dirs)
-        return cls(
+        robot = cls(
             model, visuals, adapter, camera_frame, camera or CameraIntrinsics(), source.label
         )
+        robot._description = description
+        return robot
+
+    def write_urdf(self, path: str | Path) -> Path:
+        """Write the robot as built (platform, arm, mount, camera frame) as one URDF file.
+
+        :meth:`from_urdf` on the written file, with this robot's ``camera_frame`` and base,
+        gives the same model: the differential drive is found again from the wheel joints,
+        which the file keeps. Mesh paths are absolute. An explicit base adapter object is not
+        written; pass it to :meth:`from_urdf` again.
+
+        Args:
+            path: File to write (``.urdf``).
+
+        Returns:
+            The path written.
+
+        Raises:
+            UrdfError: If the robot was not built from a URDF description.
+        """
+        description = getattr(self, "_description", None)
+        if description is None:
+            raise UrdfError(self.source, "no URDF description to write: build with from_urdf")
+        return write_urdf(description, path)
 
     def with_model_error(
         self, kinematic_scale: float = 1.0, mass_scale: float = 1.0

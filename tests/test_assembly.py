@@ -11,7 +11,7 @@ import example_robot_data
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import URDF_DIR, planar_pose, random_configuration, rpy_matrix, urdf_wheels
+from conftest import DATA_DIR, URDF_DIR, planar_pose, random_configuration, rpy_matrix, urdf_wheels
 
 import pbvs_pin
 from pbvs_pin import MobileManipulator
@@ -151,26 +151,6 @@ def test_mount_as_vector_or_se3_gives_same_model(assembled, name):
     np.testing.assert_allclose(a.camera_jacobian(q), b.camera_jacobian(q), atol=1e-12)
 
 
-@pytest.mark.parametrize(
-    ("name", "ahead", "height"),
-    [
-        ("pioneer_ur5", 0.45, 0.75),
-        ("pioneer_panda", 0.45, 0.75),
-        ("pioneer_z1", 0.45, 0.75),
-        ("pioneer_kinova", 0.45, 0.75),
-        ("pioneer_xarm7", 0.45, 0.75),
-        ("tiago", 0.6, 1.0),
-    ],
-)
-def test_shipped_home_camera_looks_forward(load, name, ahead, height):
-    """catalogue.py: at home the camera is ahead and above the platform, looking forward."""
-    robot = load(name)
-    pose = robot.camera_pose(robot.home())
-    np.testing.assert_allclose(pose.translation, [ahead, 0.0, height], atol=5e-3)
-    np.testing.assert_allclose(pose.rotation[:, 2], [1, 0, 0], atol=1e-2)  # optical z forward
-    np.testing.assert_allclose(pose.rotation[:, 1], [0, 0, -1], atol=1e-2)  # image y down
-
-
 def test_reference_robot_chain(cyton):
     assert cyton.n == 5
     assert cyton.arm_joint_names == (
@@ -198,3 +178,72 @@ def test_arm_with_its_own_optical_frame_matches_the_shipped_assembly():
             base="pioneer3at", arm="cyton_alpha3", mount=mount,
             camera_link="camera_optical_frame", camera_pose=(0, 0, 0.1, 0, 0, 0),
         )  # fmt: skip
+
+
+@pytest.mark.parametrize("name", ["pioneer_ur5", "tiago"])
+def test_written_urdf_loads_as_the_same_robot(load, tmp_path, name):
+    """write_urdf then from_urdf: same joints, masses, drive, camera pose and Jacobian."""
+    robot = load(name)
+    path = robot.write_urdf(tmp_path / f"{name}.urdf")
+    again = MobileManipulator.from_urdf(str(path), camera_frame=robot.camera_frame)
+    assert (again.model.nq, again.model.nv, again.n) == (robot.model.nq, robot.model.nv, robot.n)
+    assert again.arm_joint_names == robot.arm_joint_names
+    assert again.base == robot.base  # same wheel radius, track and wheel speed limit
+    np.testing.assert_allclose(again.velocity_limits, robot.velocity_limits, rtol=1e-12)
+    for a, b in zip(again.model.inertias, robot.model.inertias, strict=True):
+        assert a.mass == pytest.approx(b.mass, rel=1e-12)
+        np.testing.assert_allclose(a.lever, b.lever, atol=1e-9)
+        np.testing.assert_allclose(a.inertia, b.inertia, atol=1e-9)
+    assert again.visual_model.ngeoms == robot.visual_model.ngeoms
+    rng = np.random.default_rng([63, len(name)])
+    for _ in range(3):
+        q = random_configuration(robot, rng)
+        np.testing.assert_allclose(
+            again.camera_pose(q).homogeneous, robot.camera_pose(q).homogeneous, atol=1e-9
+        )
+        np.testing.assert_allclose(again.camera_jacobian(q), robot.camera_jacobian(q), atol=1e-9)
+    # The file stands alone: no package:// URI is left, every mesh path is absolute.
+    text = path.read_text()
+    assert "package://" not in text
+
+
+DRIVE_KEYS = ("wheel_radius", "track", "wheel_speed_limit", "DifferentialDrive(")
+
+
+@pytest.mark.parametrize(
+    ("edit", "problem"),
+    [
+        (lambda text: text, "no usable drive axle"),  # no_wheels.urdf as is
+        (
+            lambda text: text.replace('<limit effort="10" velocity="5.0"/>', ""),
+            "no <limit velocity=...>",
+        ),
+        (
+            lambda text: text.replace(
+                '<cylinder radius="0.08" length="0.04"/>', '<mesh filename="wheel.stl"/>'
+            ),
+            "no cylinder or sphere geometry",
+        ),
+    ],
+    ids=["no-wheels", "no-velocity-limit", "mesh-wheels"],
+)
+def test_drive_errors_name_the_parameters_to_add(tmp_path, edit, problem):
+    source = DATA_DIR / (
+        "no_wheels.urdf" if problem.startswith("no usable") else "fixed_chain.urdf"
+    )
+    path = tmp_path / source.name
+    path.write_text(edit(source.read_text()))
+    with pytest.raises(pbvs_pin.DriveAxleNotFound) as info:
+        MobileManipulator.from_urdf(str(path))
+    message = str(info.value)
+    assert problem in message
+    for key in DRIVE_KEYS:
+        assert key in message
+
+
+def test_explicit_drive_parameters_replace_the_missing_wheels():
+    """The advice of the errors above works: a differential drive given explicitly."""
+    drive = pbvs_pin.DifferentialDrive(wheel_radius=0.1, track=0.4, max_wheel_speed=5.0)
+    robot = MobileManipulator.from_urdf(str(DATA_DIR / "no_wheels.urdf"), base=drive)
+    assert robot.n == 3
+    np.testing.assert_allclose(robot.velocity_limits[:2], [0.5, 2.5])  # r w, 2 r w / track
