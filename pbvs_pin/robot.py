@@ -95,6 +95,9 @@ class MobileManipulator:
         home_arm: Arm posture [rad or m] of :meth:`home`; zeros unless a recipe sets it.
         arm_q_indices: Index in ``q`` of each arm joint. Shape (n_arm,).
         arm_continuous: Whether each arm joint is continuous (stored as cos, sin). Shape (n_arm,).
+        urdf_xml: The assembled URDF the model was built from (drive footprint and camera frame
+            included), for an independent plant such as :mod:`pbvs_pin.mujoco_plant`; None
+            when the robot was built from a Pinocchio model directly.
     """
 
     def __init__(
@@ -145,6 +148,7 @@ class MobileManipulator:
         )
         self.velocity_limits = np.concatenate([base.velocity_limits(), arm_limits])
         self.home_arm = np.zeros(self.n_arm)
+        self.urdf_xml: str | None = None
 
     # ------------------------------------------------------------------ builders
     @classmethod
@@ -234,9 +238,11 @@ class MobileManipulator:
         xml = to_xml(source)
         model = _build_model(xml, source.label, adapter.root_joint())
         visuals = _build_visuals(model, xml, source.label, source.package_dirs)
-        return cls(
+        robot = cls(
             model, visuals, adapter, camera_frame, camera or CameraIntrinsics(), source.label
         )
+        robot.urdf_xml = xml
+        return robot
 
     def with_model_error(
         self, kinematic_scale: float = 1.0, mass_scale: float = 1.0
