@@ -7,9 +7,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from pbvs_pin import MobileManipulator, load_robot
 from pbvs_pin.dynamics import ARM_TIME_CONSTANT, VelocityLoop
 from pbvs_pin.mujoco_plant import MujocoPlant
-from pbvs_pin import MobileManipulator, load_robot
 
 TWO_WHEELS = Path(__file__).parent / "data" / "two_wheel_platform.urdf"
 
