@@ -97,6 +97,9 @@ class MobileManipulator:
         home_arm: Arm posture [rad or m] of :meth:`home`; zeros unless a recipe sets it.
         arm_q_indices: Index in ``q`` of each arm joint. Shape (n_arm,).
         arm_continuous: Whether each arm joint is continuous (stored as cos, sin). Shape (n_arm,).
+        urdf_xml: The assembled URDF the model was built from (drive footprint and camera frame
+            included), for an independent plant such as :mod:`pbvs_pin.mujoco_plant`; None
+            when the robot was built from a Pinocchio model directly.
     """
 
     def __init__(
@@ -147,6 +150,7 @@ class MobileManipulator:
         )
         self.velocity_limits = np.concatenate([base.velocity_limits(), arm_limits])
         self.home_arm = np.zeros(self.n_arm)
+        self.urdf_xml: str | None = None
 
     # ------------------------------------------------------------------ builders
     @classmethod
@@ -241,6 +245,7 @@ class MobileManipulator:
             model, visuals, adapter, camera_frame, camera or CameraIntrinsics(), source.label
         )
         robot._description = description
+        robot.urdf_xml = xml
         return robot
 
     def write_urdf(self, path: str | Path) -> Path:

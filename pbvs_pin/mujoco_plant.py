@@ -1,0 +1,337 @@
+r"""An independent plant: MuJoCo physics of the controller's URDF, wheels rolling on the ground.
+
+The :class:`pbvs_pin.plant.Plant` integrates the controller's own Pinocchio model with the
+no-side-slip constraint built in. :class:`MujocoPlant` instead builds a MuJoCo model from the
+*same assembled URDF* (:attr:`pbvs_pin.robot.MobileManipulator.urdf_xml`, through MuJoCo's own
+URDF importer and ``MjSpec``): the platform's root body gets a free joint, its drive wheels are
+cylinders (the URDF's wheel radius) that roll with friction on a ground plane, and every wheel
+and arm joint is driven by a velocity servo
+
+.. math:: \tau_j = \mathrm{clip}\big(k_j (\dot q_{j,ref} - \dot q_j) + G_j\, g_j(q),
+          \ \pm \tau_{j,max}\big),
+
+with the URDF's effort as ``tau_max`` (MuJoCo joint ``actuatorfrcrange``), the URDF's damping
+and friction as MuJoCo joint ``damping``/``frictionloss``, and the URDF's limits as MuJoCo joint
+limits; ``G_j g_j`` is the servo's cancellation of its own gravity load (``G`` of
+:class:`pbvs_pin.dynamics.VelocityLoop`). The platform command ``[u, omega]`` becomes wheel
+speeds ``w_l = (u - omega b / 2) / r``, ``w_r = (u + omega b / 2) / r`` (track ``b``, wheel
+radius ``r``), the inverse of ``u = r (w_l + w_r) / 2``, ``omega = r (w_r - w_l) / b``. Whether
+the platform then moves as a unicycle is up to the contacts: a skid-steer platform slips.
+
+Contacts: only platform geometry meets the ground. Drive wheels have Coulomb friction
+:data:`WHEEL_FRICTION` (condim 3; MuJoCo's default pyramidal cone and Newton solver, 2x faster
+than the elliptic cone here); the platform's other primitive collision shapes (chassis, ball
+casters) are frictionless supports; arm geometry and meshes are dropped (visual
+meshes are optional, inertias come from the URDF's ``<inertial>`` only). The step is
+``implicitfast``, so servo gains and damping are integrated implicitly and stiff servos are
+stable at a 1 ms step.
+"""
+
+from __future__ import annotations
+
+import io
+from typing import TYPE_CHECKING
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+import yourdfpy
+from lxml import etree
+
+from pbvs_pin import frames
+from pbvs_pin.assembly import DriveAxle, UrdfSource, find_drive_axle
+from pbvs_pin.base import DifferentialDrive
+from pbvs_pin.exceptions import GainError, UrdfError
+
+if TYPE_CHECKING:
+    from pbvs_pin.dynamics import VelocityLoop
+    from pbvs_pin.robot import MobileManipulator
+
+WHEEL_FRICTION = 1.0
+"""Sliding friction coefficient of a drive wheel on the floor (rubber on concrete)."""
+
+WHEEL_TIME_CONSTANT = 0.05
+"""Time constant [s] of the wheel servos' proportional action on the forward speed, wheels
+not slipping: ``k_w = m r^2 / (N tau_w)`` for a robot of mass ``m`` on ``N`` drive wheels."""
+
+WHEEL_INTEGRAL_TIME = 0.1
+r"""Integral time ``T_i`` [s] of the wheel servos: with :data:`WHEEL_TIME_CONSTANT` the forward
+loop ``m r^2 / N \ddot e + k_w \dot e + k_w / T_i e = 0`` has damping ratio
+``sqrt(T_i / tau_w) / 2 = 0.71``."""
+
+GROUND = "ground"
+"""Name of the ground plane geom."""
+
+_CONTACT_AFFINITY = 1
+"""Robot geoms have ``conaffinity`` 1 and ``contype`` 0, the ground the reverse: robot geoms
+meet the ground but never each other."""
+
+
+def _strip_geometry(xml: str | bytes) -> bytes:
+    """The URDF without ``<visual>`` elements and without mesh ``<collision>`` elements."""
+    root = etree.fromstring(xml.encode() if isinstance(xml, str) else xml)
+    for element in root.findall("link/visual"):
+        element.getparent().remove(element)
+    for element in root.findall("link/collision"):
+        if element.find("geometry/mesh") is not None:
+            element.getparent().remove(element)
+    return etree.tostring(root)
+
+
+def _drive_axle(xml: bytes, label: str) -> DriveAxle:
+    """The drive axle of an assembled URDF (whose root is the drive footprint)."""
+    urdf = yourdfpy.URDF.load(
+        io.BytesIO(xml),
+        build_scene_graph=False,
+        load_meshes=False,
+        load_collision_meshes=False,
+        filename_handler=yourdfpy.filename_handler_null,
+    )
+    return find_drive_axle(UrdfSource(urdf.robot, label, ()))
+
+
+def _static_descendants(body: mujoco.MjsBody) -> list[mujoco.MjsBody]:
+    """``body`` and every body welded to it (reached without crossing a joint)."""
+    found, frontier = [body], [body]
+    while frontier:
+        for child in frontier.pop().bodies:
+            if not child.joints:
+                found.append(child)
+                frontier.append(child)
+    return found
+
+
+def build_spec(
+    robot: MobileManipulator, friction: float = WHEEL_FRICTION
+) -> tuple[mujoco.MjSpec, DriveAxle]:
+    """MuJoCo description of ``robot`` on a ground plane, without actuators.
+
+    Args:
+        robot: A differential-drive robot built from a URDF (``robot.urdf_xml`` set).
+        friction: Sliding friction coefficient of the drive wheels on the ground.
+
+    Returns:
+        The spec (free joint on the drive footprint, ground, contact geometry) and the drive
+        axle found in the URDF.
+
+    Raises:
+        UrdfError: If the robot has no URDF, is not a differential drive, or MuJoCo rejects it.
+        GainError: If ``friction`` is not positive.
+    """
+    if robot.urdf_xml is None or not isinstance(robot.base, DifferentialDrive):
+        raise UrdfError(
+            robot.source,
+            "MuJoCo plant: expected a differential-drive robot built from a URDF "
+            "(MobileManipulator.from_urdf or assemble)",
+        )
+    if not (np.isfinite(friction) and friction > 0):
+        raise GainError(f"MuJoCo plant: expected wheel friction > 0, got {friction}")
+    xml = _strip_geometry(robot.urdf_xml)
+    axle = _drive_axle(xml, robot.source)
+    try:
+        spec = mujoco.MjSpec.from_string(xml.decode())
+    except ValueError as err:
+        raise UrdfError(robot.source, f"MuJoCo cannot read the URDF: {err}") from err
+    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    spec.compiler.fusestatic = True
+    root = spec.body(frames.DRIVE_FOOTPRINT)
+    root.add_freejoint(name=frames.DRIVE_FOOTPRINT)
+    platform = {body.name for body in _static_descendants(root)}
+    wheels = {spec.joint(name).parent.name for name in axle.wheel_joints}
+    for body in spec.bodies:
+        for geom in body.geoms:
+            if body.name in wheels or (
+                body.name in platform and geom.type != mujoco.mjtGeom.mjGEOM_MESH
+            ):
+                geom.contype, geom.conaffinity = 0, _CONTACT_AFFINITY
+                geom.condim = 3 if body.name in wheels else 1
+                geom.friction = [friction, 0.0, 0.0] if body.name in wheels else [0, 0, 0]
+            else:
+                spec.delete(geom)
+    for name in wheels:
+        if not spec.body(name).geoms:
+            raise UrdfError(robot.source, f"wheel link {name!r}: expected a cylinder or sphere")
+    spec.worldbody.add_geom(
+        name=GROUND,
+        type=mujoco.mjtGeom.mjGEOM_PLANE,
+        size=[0.0, 0.0, 1.0],
+        contype=_CONTACT_AFFINITY,
+        conaffinity=0,
+        condim=1,
+        friction=[0.0, 0.0, 0.0],
+    )
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    return spec, axle
+
+
+class MujocoPlant:
+    """The robot simulated by MuJoCo, with the interface of :class:`pbvs_pin.plant.Plant`.
+
+    Args:
+        robot: The true robot (its ``urdf_xml`` is the MuJoCo model's source).
+        loop: The arm's low-level velocity loops: arm joint ``j`` gets the velocity gain
+            ``loop.gains[j]``; ``loop.gravity_compensated`` marks servos that cancel their own
+            gravity load. The base entries and ``loop.damping`` are not used: the wheels have
+            their own servos, and the joint damping is the URDF's, in MuJoCo.
+        q: Initial configuration of the controller's model. Shape (nq,).
+        dt: Integration step [s].
+        friction: Sliding friction coefficient of the drive wheels on the ground.
+        wheel_time_constant: Forward-speed time constant ``tau_w`` [s] of the wheel servos'
+            proportional action, wheels not slipping.
+        wheel_integral_time: Integral time ``T_i`` [s] of the wheel servos' integral action.
+
+    Attributes:
+        model: The ``mujoco.MjModel``.
+        data: Its ``mujoco.MjData``.
+        axle: The drive axle found in the URDF.
+    """
+
+    def __init__(
+        self,
+        robot: MobileManipulator,
+        loop: VelocityLoop,
+        q: npt.ArrayLike,
+        dt: float = 1e-3,
+        friction: float = WHEEL_FRICTION,
+        wheel_time_constant: float = WHEEL_TIME_CONSTANT,
+        wheel_integral_time: float = WHEEL_INTEGRAL_TIME,
+    ) -> None:
+        if not 0 < dt <= 0.05:
+            raise GainError(f"plant step: expected 0 < dt <= 0.05 s, got {dt}")
+        for name, value in (
+            ("wheel_time_constant", wheel_time_constant),
+            ("wheel_integral_time", wheel_integral_time),
+        ):
+            if not (np.isfinite(value) and value > 0):
+                raise GainError(f"{name}: expected > 0 s, got {value}")
+        self.robot, self.loop, self.dt = robot, loop, dt
+        self.wheel_integral_time = wheel_integral_time
+        spec, self.axle = build_spec(robot, friction)
+        spec.option.timestep = dt
+        drive = robot.base
+        mass = sum(body.mass for body in spec.bodies)
+        n_wheels = len(self.axle.wheel_joints)
+        wheel_gain = mass * drive.wheel_radius**2 / (n_wheels * wheel_time_constant)
+        for name in self.axle.wheel_joints:
+            spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+            spec.actuator(name).set_to_velocity(kv=wheel_gain)
+        for name, gain in zip(robot.arm_joint_names, loop.gains[robot.n_base :], strict=True):
+            spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+            spec.actuator(name).set_to_velocity(kv=float(gain))
+        try:
+            self.model = spec.compile()
+        except ValueError as err:
+            raise UrdfError(robot.source, f"MuJoCo cannot compile the model: {err}") from err
+        self.data = mujoco.MjData(self.model)
+        model = self.model
+        joint = [model.joint(name) for name in robot.arm_joint_names]
+        self._arm_qpos = np.array([j.qposadr[0] for j in joint])
+        self._arm_dof = np.array([j.dofadr[0] for j in joint])
+        self._arm_joint = np.array([j.id for j in joint])
+        self._arm_body = model.jnt_bodyid[self._arm_joint]
+        self._arm_slide = model.jnt_type[self._arm_joint] == mujoco.mjtJoint.mjJNT_SLIDE
+        compensated = loop.gravity_weight[robot.n_base :] == 0.0
+        self._compensated_any = bool(compensated.any())
+        self._compensation = compensated / np.asarray(loop.gains[robot.n_base :], dtype=float)
+        self._weight = model.body_subtreemass[self._arm_body] * -model.opt.gravity[2]
+        wheels = [model.joint(name) for name in self.axle.wheel_joints]
+        left = model.body_pos[[j.bodyid[0] for j in wheels], 1] > 0.0
+        half_track = 0.5 * drive.track
+        self._wheel_map = (
+            np.column_stack([np.ones(len(wheels)), np.where(left, -half_track, half_track)])
+            / drive.wheel_radius
+        )
+        self._wheel_dof = np.array([j.dofadr[0] for j in wheels])
+        self._n_wheels = len(wheels)
+        self._integral_limit = (
+            model.jnt_actfrcrange[[j.id for j in wheels], 1] * wheel_integral_time / wheel_gain
+        )
+        self._wheel_integral = np.zeros(len(wheels))
+        self.reset(q)
+
+    # ------------------------------------------------------------------ state
+    def reset(self, q: npt.ArrayLike) -> None:
+        """Place the robot at configuration ``q`` (shape (nq,)), at rest, wheels on the floor."""
+        q = self.robot.check_configuration(q)
+        mujoco.mj_resetData(self.model, self.data)
+        self._wheel_integral[:] = 0.0
+        yaw = np.arctan2(q[3], q[2])
+        self.data.qpos[:7] = [q[0], q[1], 0.0, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
+        self.data.qpos[self._arm_qpos] = self.robot.arm_positions(q)
+        mujoco.mj_forward(self.model, self.data)
+
+    @property
+    def q(self) -> np.ndarray:
+        """Configuration of the controller's model. Shape (nq,).
+
+        The planar pose of the drive footprint (x, y, cos and sin of its heading), then the arm
+        joints.
+        """
+        qpos, rotation = self.data.qpos, self.data.xmat[1].reshape(3, 3)
+        heading = rotation[:2, 0] / np.hypot(rotation[0, 0], rotation[1, 0])
+        q = self.robot.neutral()
+        q[:4] = qpos[0], qpos[1], heading[0], heading[1]
+        return self.robot.with_arm_positions(q, qpos[self._arm_qpos])
+
+    def body_velocity(self) -> np.ndarray:
+        """Forward and lateral speed [m/s], yaw rate [rad/s] of the drive footprint. Shape (3,).
+
+        Speeds are in the footprint's own frame; the lateral speed is the side slip that the
+        unicycle model excludes.
+        """
+        rotation = self.data.xmat[1].reshape(3, 3)
+        linear = rotation.T @ self.data.qvel[:3]
+        yaw_rate = (rotation @ self.data.qvel[3:6])[2]
+        return np.array([linear[0], linear[1], yaw_rate])
+
+    @property
+    def v(self) -> np.ndarray:
+        """Actuated velocity ``[u, omega, arm rates]`` of the true motion. Shape (n,)."""
+        return np.concatenate([self.body_velocity()[[0, 2]], self.data.qvel[self._arm_dof]])
+
+    def wheel_speeds(self) -> np.ndarray:
+        """Drive wheel angular speeds [rad/s], in the order of ``axle.wheel_joints``."""
+        return self.data.qvel[self._wheel_dof].copy()
+
+    # ------------------------------------------------------------------ step
+    def arm_gravity(self) -> np.ndarray:
+        r"""Gravity load of each arm joint, ``g_j = -a_j \cdot ((c_j - p_j) \times m_j g)``.
+
+        ``m_j`` and ``c_j`` are the mass and centre of mass of the subtree the joint moves,
+        ``p_j`` and ``a_j`` the joint's anchor and axis (a slide joint: ``-a_j \cdot m_j g``);
+        gravity is along the world's -z, ``g = (0, 0, -g_0)``, so that
+        ``g_j = m_j g_0 (a_x l_y - a_y l_x)`` with ``l = c_j - p_j``. Uses the positions of the
+        last ``mj_forward`` or ``mj_step1``.
+
+        Returns:
+            Generalised gravity [N m or N] of the arm joints. Shape (n_arm,).
+        """
+        data = self.data
+        axis = data.xaxis[self._arm_joint]
+        lever = data.subtree_com[self._arm_body] - data.xanchor[self._arm_joint]
+        hinge = axis[:, 0] * lever[:, 1] - axis[:, 1] * lever[:, 0]
+        return self._weight * np.where(self._arm_slide, axis[:, 2], hinge)
+
+    def step(self, v_ref: np.ndarray) -> None:
+        r"""Advance by one step ``dt`` under the velocity reference ``v_ref`` (shape (n,)).
+
+        ``mj_step1`` computes the current kinematics; the servo commands are set and
+        ``mj_step2`` integrates. Wheel references come from ``[u, omega]``; each wheel servo
+        adds integral action ``k_w e_i / T_i`` with ``e_i = \int (w_{ref} - w) dt`` (clamped at
+        the wheel's effort), as a wheel's motor controller does, so that a skid-steer platform
+        keeps turning against its wheels' side friction. A compensating arm servo adds its
+        gravity load divided by its gain.
+        """
+        model, data = self.model, self.data
+        mujoco.mj_step1(model, data)
+        n_wheels = self._n_wheels
+        wheel_ref = self._wheel_map @ v_ref[: self.robot.n_base]
+        integral, limit = self._wheel_integral, self._integral_limit
+        integral += self.dt * (wheel_ref - data.qvel[self._wheel_dof])
+        np.minimum(np.maximum(integral, -limit, out=integral), limit, out=integral)
+        ctrl = data.ctrl
+        ctrl[:n_wheels] = wheel_ref + integral / self.wheel_integral_time
+        ctrl[n_wheels:] = v_ref[self.robot.n_base :]
+        if self._compensated_any:
+            ctrl[n_wheels:] += self._compensation * self.arm_gravity()
+        mujoco.mj_step2(model, data)
