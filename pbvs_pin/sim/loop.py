@@ -18,7 +18,6 @@ from scipy.optimize import least_squares
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import build_robot
 from pbvs_pin.control.compensation import Compensation, DynamicCompensator
-from pbvs_pin.control.fused import FusedControlStep
 from pbvs_pin.control.ibvs import ClassicIbvs
 from pbvs_pin.control.kinematic import PassivityController, ServoGains
 from pbvs_pin.control.secondary import (
@@ -29,6 +28,7 @@ from pbvs_pin.control.secondary import (
     SecondaryObjective,
     secondary_vector,
 )
+from pbvs_pin.control.step import FusedControlStep
 from pbvs_pin.dynamics import VelocityLoop
 from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.features import ImageMeasurement, TwoSphereFeatures
@@ -381,7 +381,7 @@ def simulate(
             )  # fmt: skip
         else:
             if fused is not None:
-                fused.memory[2, 0] = 0.0  # the command derivative restarts after a loss
+                fused.restart_derivative()  # the command derivative restarts after a loss
             output, jacobians = _control_step(
                 setup, perception, plant.q, laser_reading, t, control_dt
             )
