@@ -9,6 +9,10 @@ and the dynamic compensation of eq. (20) (:mod:`pbvs_pin.control.compensation`).
 objectives once, in the buffers named by :mod:`pbvs_pin.control.layout`; then each step makes
 its Pinocchio calls and one call of :func:`fused_control_step`. A scenario with the IBVS
 baseline or a user-defined objective uses the modular classes.
+
+Numba keys its on-disk cache on each compiled function's own file, so the cached
+:func:`fused_control_step` does not notice an edit of a kernel it composes from another module.
+After editing a kernel, delete the caches (``find pbvs_pin -name '*.nb[ci]' -delete``).
 """
 
 from __future__ import annotations
