@@ -19,7 +19,7 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from pbvs_pin.control.fused import FusedControlStep
+from pbvs_pin.control.step import FusedControlStep
 from pbvs_pin.sim.loop import Perception, build, simulate
 from pbvs_pin.sim.scenario import load_scenario
 

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
+from numba import njit
 
 from pbvs_pin.exceptions import GainError, PointBehindCamera
-from pbvs_pin.kernels import point_jacobians
 from pbvs_pin.validation import as_array
 
 MIN_DEPTH = 1e-3
@@ -159,6 +159,53 @@ class CameraIntrinsics:
         return self.focal_px * diameter_m / depth
 
 
+@njit(cache=True)
+def point_jacobians(
+    points: np.ndarray, depths: np.ndarray, focal: float
+) -> tuple[np.ndarray, np.ndarray]:
+    r"""Interaction matrix and position Jacobian of each image point (paper's sign, eq. 2).
+
+    With ``xn = -u / f`` and ``yn = -v / f`` (Chaumette & Hutchinson 2006, scaled by ``-f``):
+
+    .. math:: L_i = -f \begin{bmatrix}
+              -1/z & 0 & x_n/z & x_n y_n & -(1 + x_n^2) & y_n \\
+              0 & -1/z & y_n/z & 1 + y_n^2 & -x_n y_n & -x_n \end{bmatrix},\quad
+              \frac{\partial \xi_i}{\partial p_c} =
+              \begin{bmatrix} -f/z & 0 & -u/z \\ 0 & -f/z & -v/z \end{bmatrix}
+
+    Args:
+        points: ``[u, v]`` of each point [px]. Shape (k, 2).
+        depths: Depth of each point [m]. Shape (k,).
+        focal: Focal length f [px].
+
+    Returns:
+        ``L`` stacked, shape (2k, 6) [px/m, px/rad], for the camera twist in the camera frame
+        with the point fixed in the world; ``d xi / d p_c`` stacked, shape (2k, 3) [px/m].
+    """
+    k = points.shape[0]
+    interaction = np.zeros((2 * k, 6))
+    position = np.zeros((2 * k, 3))
+    for i in range(k):
+        u, v, z = points[i, 0], points[i, 1], depths[i]
+        xn, yn = -u / focal, -v / focal
+        a, b = 2 * i, 2 * i + 1
+        interaction[a, 0] = focal / z
+        interaction[a, 2] = -focal * xn / z
+        interaction[a, 3] = -focal * xn * yn
+        interaction[a, 4] = focal * (1.0 + xn * xn)
+        interaction[a, 5] = -focal * yn
+        interaction[b, 1] = focal / z
+        interaction[b, 2] = -focal * yn / z
+        interaction[b, 3] = -focal * (1.0 + yn * yn)
+        interaction[b, 4] = focal * xn * yn
+        interaction[b, 5] = focal * xn
+        position[a, 0] = -focal / z
+        position[a, 2] = -u / z
+        position[b, 1] = -focal / z
+        position[b, 2] = -v / z
+    return interaction, position
+
+
 def point_interaction_matrix(focal_px: float, xi: npt.ArrayLike, depth: float) -> np.ndarray:
     r"""Interaction matrix of one image point in the paper's sign convention.
 
@@ -172,7 +219,7 @@ def point_interaction_matrix(focal_px: float, xi: npt.ArrayLike, depth: float) -
 
     where ``[v_c; w_c]`` is the camera's twist expressed in the camera frame (Pinocchio's
     ``LOCAL`` convention) and the point is fixed in the world. Computed by
-    :func:`pbvs_pin.kernels.point_jacobians`.
+    :func:`point_jacobians`.
 
     Args:
         focal_px: Focal length f [px].

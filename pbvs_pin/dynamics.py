@@ -23,8 +23,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
+from numba import njit
 
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.linalg import cholesky_solve, matvec
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -167,3 +169,88 @@ class VelocityLoop:
             inverse[:, None] * (terms.coriolis + np.diag(self.damping)) + np.eye(len(inverse)),
             inverse * self.gravity_weight * terms.gravity,
         )
+
+
+@njit(cache=True)
+def actuated_terms(
+    mass_upper: np.ndarray,
+    bias: np.ndarray,
+    gravity: np.ndarray,
+    selection: np.ndarray,
+    gravity_weight: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    r"""Rigid-body terms in actuated coordinates, for eq. (1).
+
+    .. math:: M_v = S^T M_{rb} S,\qquad C_v v + (I - G) g_v = S^T b - G\, S^T g_{rb}
+
+    with ``b = C_rb(q, S v) S v + g_rb`` from ``pin.nonLinearEffects``.
+
+    Args:
+        mass_upper: CRBA mass matrix, upper triangle filled (``pin.crba``). Shape (nv, nv).
+        bias: ``b``. Shape (nv,).
+        gravity: ``g_rb``. Shape (nv,).
+        selection: ``S``; mostly zeros, which are skipped. Shape (nv, n).
+        gravity_weight: Diagonal of ``I - G``. Shape (n,).
+
+    Returns:
+        ``M_v`` (n, n) and ``C_v v + (I - G) g_v`` (n,).
+    """
+    nv, n = selection.shape
+    mass_v = np.zeros((n, n))
+    bias_v = np.zeros(n)
+    for a in range(nv):
+        for i in range(n):
+            s_ai = selection[a, i]
+            if s_ai == 0.0:
+                continue
+            bias_v[i] += s_ai * (bias[a] - (1.0 - gravity_weight[i]) * gravity[a])
+            for b in range(nv):
+                m_ab = mass_upper[a, b] if a <= b else mass_upper[b, a]
+                for j in range(n):
+                    mass_v[i, j] += s_ai * m_ab * selection[b, j]
+    return mass_v, bias_v
+
+
+@njit(cache=True)
+def velocity_loop_step(
+    mass_upper: np.ndarray,
+    bias: np.ndarray,
+    gravity: np.ndarray,
+    selection: np.ndarray,
+    gains: np.ndarray,
+    damping: np.ndarray,
+    gravity_weight: np.ndarray,
+    v: np.ndarray,
+    v_ref: np.ndarray,
+    h: float,
+    v_pin_out: np.ndarray,
+    displacement_out: np.ndarray,
+) -> np.ndarray:
+    r"""One semi-implicit step of eq. (1) times ``K_v``: the plant's velocity update.
+
+    .. math:: (M_v + h (K_v + D))\, v_{k+1} = M_v v_k + h (K_v v_{ref} - C_v v_k - (I - G) g_v)
+
+    Args:
+        mass_upper: CRBA mass matrix, upper triangle filled. Shape (nv, nv).
+        bias: ``C_rb(q, S v) S v + g_rb`` (``pin.nonLinearEffects``). Shape (nv,).
+        gravity: Generalised gravity ``g_rb``. Shape (nv,).
+        selection: ``S``. Shape (nv, n).
+        gains: ``K_v``. Shape (n,).
+        damping: ``D``. Shape (n,).
+        gravity_weight: Diagonal of ``I - G`` (0 where the servo cancels gravity). Shape (n,).
+        v: Actuated velocity. Shape (n,).
+        v_ref: Velocity reference. Shape (n,).
+        h: Step [s].
+        v_pin_out: Written: ``S v_{k+1}``. Shape (nv,).
+        displacement_out: Written: ``S v_{k+1} h`` for ``pin.integrate``. Shape (nv,).
+
+    Returns:
+        ``v_{k+1}``. Shape (n,).
+    """
+    mass_v, bias_v = actuated_terms(mass_upper, bias, gravity, selection, gravity_weight)
+    lhs = mass_v + h * np.diag(gains + damping)
+    rhs = matvec(mass_v, v) + h * (gains * v_ref - bias_v)
+    v_next = cholesky_solve(lhs, rhs.reshape(-1, 1))[:, 0]
+    v_pin_out[:] = matvec(selection, v_next)
+    displacement_out[:] = h * v_pin_out
+    return v_next

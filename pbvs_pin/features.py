@@ -18,10 +18,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
+from numba import njit
 
-from pbvs_pin.camera import MIN_DEPTH, CameraIntrinsics
+from pbvs_pin.camera import MIN_DEPTH, CameraIntrinsics, point_jacobians
 from pbvs_pin.exceptions import GainError, PointBehindCamera, ShapeError
-from pbvs_pin.kernels import feature_jacobians, point_jacobians
+from pbvs_pin.linalg import matmul
 from pbvs_pin.validation import as_array
 
 if TYPE_CHECKING:
@@ -39,6 +40,43 @@ class ImageMeasurement:
 
     points: np.ndarray
     depths: np.ndarray
+
+
+@njit(cache=True)
+def feature_jacobians(
+    points: np.ndarray,
+    depths: np.ndarray,
+    rows: np.ndarray,
+    focal: float,
+    camera_jacobian: np.ndarray,
+    rotation_world_to_camera: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    r"""Features and both Jacobians of eq. (3) from image points.
+
+    .. math:: J = L\, J_{cam} S,\qquad J_o = \frac{\partial \xi}{\partial p_c}\, {}^c R_w
+
+    Args:
+        points: ``[u, v]`` of each point [px]. Shape (k, 2).
+        depths: Depths [m]. Shape (k,).
+        rows: Indices into ``[u1, v1, u2, v2, ...]`` forming ``xi``. Shape (r,).
+        focal: Focal length [px].
+        camera_jacobian: ``J_cam S``, camera twist (LOCAL) per actuated velocity. Shape (6, n).
+        rotation_world_to_camera: ``cRw``. Shape (3, 3).
+
+    Returns:
+        ``xi`` (r,) [px], ``J`` (r, n), ``J_o`` (r, 3).
+    """
+    interaction, position = point_jacobians(points, depths, focal)
+    flat = points.ravel()
+    r = rows.shape[0]
+    xi = np.empty(r)
+    selected_l = np.empty((r, 6))
+    selected_p = np.empty((r, 3))
+    for a in range(r):
+        xi[a] = flat[rows[a]]
+        selected_l[a] = interaction[rows[a]]
+        selected_p[a] = position[rows[a]]
+    return xi, matmul(selected_l, camera_jacobian), matmul(selected_p, rotation_world_to_camera)
 
 
 class FeatureSet(abc.ABC):

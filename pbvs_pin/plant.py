@@ -21,8 +21,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from pbvs_pin.dynamics import velocity_loop_step
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.kernels import velocity_loop_step
 
 if TYPE_CHECKING:
     from pbvs_pin.dynamics import VelocityLoop
@@ -64,7 +64,7 @@ class Plant:
     def step(self, v_ref: np.ndarray) -> None:
         """Advance by one step ``dt`` under the velocity reference ``v_ref`` (shape (n,)).
 
-        Pinocchio gives the rigid-body terms; :func:`pbvs_pin.kernels.velocity_loop_step`
+        Pinocchio gives the rigid-body terms; :func:`pbvs_pin.dynamics.velocity_loop_step`
         solves the semi-implicit step; ``pin.integrate`` moves ``q`` on its manifold.
         """
         model, data, selection = self.robot.model, self.robot.data, self.robot.selection

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
+from numba import njit
 
 from pbvs_pin import frames
 from pbvs_pin.assembly import (
@@ -33,7 +34,6 @@ from pbvs_pin.assembly import (
 from pbvs_pin.base import BaseAdapter, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.exceptions import FrameNotFound, GainError, NoMovableJoint, UrdfError
-from pbvs_pin.kernels import arm_angles
 from pbvs_pin.validation import as_array, as_se3
 
 DEFAULT_JOINT_SPEED = 1.0
@@ -78,6 +78,25 @@ def _build_visuals(
         )
     except (RuntimeError, ValueError) as err:
         raise UrdfError(label, f"cannot load visual geometry: {err}") from err
+
+
+@njit(cache=True)
+def arm_angles(q: np.ndarray, idx_q: np.ndarray, continuous: np.ndarray) -> np.ndarray:
+    """Arm joint positions from a configuration; continuous joints (cos, sin) give an angle.
+
+    Args:
+        q: Configuration. Shape (nq,).
+        idx_q: Index of each arm joint in ``q``. Shape (n_arm,).
+        continuous: Whether each joint is stored as (cos, sin). Shape (n_arm,).
+
+    Returns:
+        Shape (n_arm,) [rad or m].
+    """
+    angles = np.empty(idx_q.shape[0])
+    for i in range(idx_q.shape[0]):
+        j = idx_q[i]
+        angles[i] = np.arctan2(q[j + 1], q[j]) if continuous[i] else q[j]
+    return angles
 
 
 class MobileManipulator:

@@ -29,7 +29,7 @@ def test_loop_jacobians_match_the_feature_set_at_the_current_configuration():
 
 def test_fused_step_equals_the_modular_blocks():
     """The 1 kHz loop's single compiled call gives what the modular classes give."""
-    from pbvs_pin.control.fused import FusedControlStep
+    from pbvs_pin.control.step import FusedControlStep
 
     scenario = load_scenario("experiment2")  # posture, joint limits and obstacle avoidance on
     modular, fused_setup = build(scenario), build(scenario)

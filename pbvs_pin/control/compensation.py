@@ -4,7 +4,7 @@ r"""Dynamic compensation, eq. (20).
 
 with ``M``, ``C``, ``g`` the velocity-reference model of eq. (1) built from the controller's
 own Pinocchio model (the matrices of :meth:`pbvs_pin.dynamics.VelocityLoop.reference_model`,
-applied in the compiled :func:`pbvs_pin.kernels.compensation_law`). With an exact
+applied in the compiled :func:`compensation_law`). With an exact
 model it gives ``d/dt (v - u) = -K_D (v - u)``, eq. (21). The paper compensates the platform
 only; here the rows compensated are a setting.
 
@@ -21,13 +21,76 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
+from numba import njit
 
+from pbvs_pin.dynamics import actuated_terms
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.kernels import compensation_law
 
 if TYPE_CHECKING:
     from pbvs_pin.dynamics import VelocityLoop
     from pbvs_pin.robot import MobileManipulator
+
+
+@njit(cache=True)
+def compensation_law(
+    mass_upper: np.ndarray,
+    bias: np.ndarray,
+    gravity: np.ndarray,
+    selection: np.ndarray,
+    gain_inverse: np.ndarray,
+    damping: np.ndarray,
+    gravity_weight: np.ndarray,
+    rows: np.ndarray,
+    k_d: np.ndarray,
+    v: np.ndarray,
+    u: np.ndarray,
+    u_dot: np.ndarray,
+    limits: np.ndarray,
+) -> tuple[np.ndarray, float]:
+    r"""Eq. (20) on the velocity-reference model of eq. (1), from Pinocchio's terms.
+
+    .. math:: M = K_v^{-1} S^T M_{rb} S,\quad C = K_v^{-1}(S^T C_{rb} S + D) + I,\quad
+              g = K_v^{-1} (I - G) S^T g_{rb},
+
+    .. math:: v_{ref} = M(\dot u - K_D (v - u)) + C v + g
+
+    Args:
+        mass_upper: CRBA mass matrix, upper triangle filled (``pin.crba``). Shape (nv, nv).
+        bias: ``C_rb(q, S v) S v + g_rb`` (``pin.nonLinearEffects``). Shape (nv,).
+        gravity: Generalised gravity ``g_rb``. Shape (nv,).
+        selection: ``S``. Shape (nv, n).
+        gain_inverse: ``1 / K_v``. Shape (n,).
+        damping: ``D``. Shape (n,).
+        gravity_weight: Diagonal of ``I - G`` (0 where the servo cancels gravity). Shape (n,).
+        rows: Which rows are compensated (the others pass ``u`` through). Shape (n,).
+        k_d: Diagonal of ``K_D`` [1/s]. Shape (n,).
+        v: Measured actuated velocity. Shape (n,).
+        u: Kinematic command. Shape (n,).
+        u_dot: Command derivative. Shape (n,).
+        limits: Velocity limits the low-level loops accept; ``v_ref`` is clipped to them.
+            Shape (n,).
+
+    Returns:
+        ``v_ref`` (n,) and ``V2 = |v - u|^2 / 2`` (eq. 22).
+    """
+    n = v.shape[0]
+    mass_v, bias_v = actuated_terms(mass_upper, bias, gravity, selection, gravity_weight)
+    acceleration = np.empty(n)
+    storage = 0.0
+    for j in range(n):
+        error = v[j] - u[j]
+        storage += 0.5 * error * error
+        acceleration[j] = u_dot[j] - k_d[j] * error
+    v_ref = np.empty(n)
+    for i in range(n):
+        value = u[i]
+        if rows[i]:
+            inertial = bias_v[i] + damping[i] * v[i]
+            for j in range(n):
+                inertial += mass_v[i, j] * acceleration[j]
+            value = gain_inverse[i] * inertial + v[i]
+        v_ref[i] = min(max(value, -limits[i]), limits[i])
+    return v_ref, storage
 
 
 class Compensation(Enum):
@@ -83,7 +146,7 @@ class DynamicCompensator:
     ) -> tuple[np.ndarray, float]:
         """Velocity reference for the robot's low-level loops.
 
-        Pinocchio gives the rigid-body terms; :func:`~pbvs_pin.kernels.compensation_law`
+        Pinocchio gives the rigid-body terms; :func:`compensation_law`
         applies eq. (20) on the model of eq. (1).
 
         Args:

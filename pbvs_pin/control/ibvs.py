@@ -11,9 +11,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from pbvs_pin.control.kinematic import ControlOutput, PassivityController, ServoGains
+from pbvs_pin.control.kinematic import ControlOutput, PassivityController, ServoGains, saturate
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.kernels import saturate
 
 
 class ClassicIbvs(PassivityController):

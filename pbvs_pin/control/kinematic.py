@@ -21,14 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from numba import njit
 
 from pbvs_pin.exceptions import GainError, ShapeError
-from pbvs_pin.kernels import (
-    damped_pseudo_inverse,
-    passivity_law,
-    saturate,
-    storage_function,
-)
+from pbvs_pin.linalg import all_finite, cholesky_solve, matmul, matvec, smallest_eigenvalue
 
 __all__ = [
     "ControlOutput",
@@ -37,6 +33,150 @@ __all__ = [
     "saturate",
     "storage_function",
 ]
+
+
+ROUNDOFF_FLOOR = 1e-12
+"""Smallest eigenvalue of the regularised ``J W^-1 J^T``, relative to its trace."""
+
+
+@njit(cache=True)
+def storage_function(error_units: np.ndarray, k: np.ndarray) -> float:
+    r"""``V1`` of eq. (7) in closed form.
+
+    .. math:: V_1 = \int_0^{\tilde\xi} \eta^T K_c(\eta)\, d\eta
+              = \sum_i k_i \left(|\tilde\xi_i| - \ln(1 + |\tilde\xi_i|)\right)
+
+    Args:
+        error_units: Feature error in controller units. Shape (r,).
+        k: ``k_i``. Shape (r,).
+    """
+    total = 0.0
+    for i in range(error_units.shape[0]):
+        magnitude = abs(error_units[i])
+        total += k[i] * (magnitude - np.log1p(magnitude))
+    return total
+
+
+@njit(cache=True)
+def saturate(u: np.ndarray, limits: np.ndarray) -> tuple[np.ndarray, float]:
+    """Scale ``u`` uniformly so that ``|u_i| <= limits_i``; return it and the factor."""
+    ratio = 0.0
+    for i in range(u.shape[0]):
+        ratio = max(ratio, abs(u[i]) / limits[i])
+    if ratio <= 1.0:
+        return u, 1.0
+    return u / ratio, 1.0 / ratio
+
+
+@njit(cache=True)
+def damped_pseudo_inverse(
+    jacobian: np.ndarray, weight_inverse: np.ndarray, threshold: float, max_damping: float
+) -> tuple[np.ndarray, float, bool]:
+    r"""Weighted right pseudo-inverse, damped near singularities (Nakamura & Hanafusa 1986).
+
+    .. math:: J^\# = W^{-1} J^T (J W^{-1} J^T + \mu^2 I)^{-1},\quad
+              \mu^2 = \mu_{max}^2 \left(1 - (\sigma_{min}/\sigma_0)^2\right)
+              \text{ if } \sigma_{min} < \sigma_0 \text{ else } 0
+
+    If that leaves ``J W^-1 J^T + mu^2 I`` with an eigenvalue below :data:`ROUNDOFF_FLOOR`
+    times its trace (``J`` singular to round-off and a tiny ``sigma_0``), ``mu^2`` is raised
+    to that floor, so that no division by zero can happen.
+
+    Args:
+        jacobian: ``J``. Shape (r, n).
+        weight_inverse: ``W^-1``. Shape (n, n).
+        threshold: ``sigma_0``.
+        max_damping: ``mu_max``.
+
+    Returns:
+        ``J#`` (n, r), ``sigma_min`` of ``J W^-1/2``, whether it was damped.
+    """
+    right = matmul(weight_inverse, jacobian.T)
+    gram = matmul(jacobian, right)
+    smallest = smallest_eigenvalue(gram)
+    sigma_min = np.sqrt(max(smallest, 0.0))
+    damped = sigma_min < threshold
+    mu2 = max_damping * max_damping * (1.0 - (sigma_min / threshold) ** 2) if damped else 0.0
+    # a J singular to round-off with a tiny threshold: keep the Cholesky factor real
+    floor = ROUNDOFF_FLOOR * np.trace(gram)
+    if smallest + mu2 < floor:
+        mu2 = floor - min(smallest, 0.0)
+    if mu2 > 0.0:
+        gram = gram + mu2 * np.eye(gram.shape[0])
+    return cholesky_solve(gram, right.T.copy()).T.copy(), sigma_min, damped
+
+
+@njit(cache=True)
+def passivity_law(
+    error: np.ndarray,
+    jacobian: np.ndarray,
+    object_jacobian: np.ndarray,
+    target_velocity: np.ndarray,
+    secondary: np.ndarray,
+    k: np.ndarray,
+    k1: np.ndarray,
+    k2: np.ndarray,
+    weight_inverse: np.ndarray,
+    damping: np.ndarray,
+    limits: np.ndarray,
+    pseudoinverse_feedback: bool,
+) -> tuple:
+    r"""Eq. (10)/(34) in controller units, saturated uniformly to the velocity limits.
+
+    .. math:: \nu = J^T K_c(\tilde\xi)\tilde\xi,\quad
+              K_c = \mathrm{diag}\!\left(\frac{k_i}{1 + |\tilde\xi_i|}\right),\quad
+              u = -\nu - J^\# J_o \hat{\dot p} + (I - J^\# J)\, k_1 \tanh(k_2 \Lambda)
+
+    and ``V1 = sum_i k_i (|e_i| - ln(1 + |e_i|))`` (eq. 7 in closed form).
+
+    Args:
+        error: ``xi - xi_d`` in controller units. Shape (r,).
+        jacobian: ``J`` in controller units. Shape (r, n).
+        object_jacobian: ``J_o`` in controller units. Shape (r, 3).
+        target_velocity: ``phat_dot`` [m/s]. Shape (3,).
+        secondary: ``Lambda``. Shape (n,).
+        k: ``k_i`` [1/s]. Shape (r,).
+        k1: Diagonal of ``k_1``. Shape (n,).
+        k2: Diagonal of ``k_2``. Shape (n,).
+        weight_inverse: ``W^-1``. Shape (n, n).
+        damping: ``[sigma_0, mu_max]`` of the pseudo-inverse. Shape (2,).
+        limits: Velocity limits. Shape (n,).
+        pseudoinverse_feedback: Use ``J# K_c e`` instead of ``nu`` as feedback.
+
+    Returns:
+        ``(valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor)``;
+        ``valid`` is False (and ``u`` zero) when an input is not finite.
+    """
+    n = secondary.shape[0]
+    zero = np.zeros(n)
+    finite = (
+        all_finite(error)
+        and all_finite(jacobian)
+        and all_finite(object_jacobian)
+        and all_finite(target_velocity)
+        and all_finite(secondary)
+    )
+    if not finite:
+        return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0
+    r = error.shape[0]
+    kc_error = np.empty(r)
+    for i in range(r):
+        kc_error[i] = k[i] / (1.0 + abs(error[i])) * error[i]
+    shaped = np.empty(n)
+    for j in range(n):
+        shaped[j] = k1[j] * np.tanh(k2[j] * secondary[j])
+    nu = matvec(jacobian.T, kc_error)
+    pinv, sigma_min, damped = damped_pseudo_inverse(
+        jacobian, weight_inverse, damping[0], damping[1]
+    )
+    feedforward = matvec(pinv, matvec(object_jacobian, target_velocity))
+    null_space = shaped - matvec(pinv, matvec(jacobian, shaped))
+    feedback = matvec(pinv, kc_error) if pseudoinverse_feedback else nu
+    u, factor = saturate(null_space - feedback - feedforward, limits)
+    if not all_finite(u):
+        return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0
+    storage = storage_function(error, k)
+    return True, u, nu, feedforward, null_space, storage, sigma_min, damped, factor
 
 
 def _positive_vector(name: str, value: npt.ArrayLike) -> np.ndarray:
@@ -178,7 +318,7 @@ class PassivityController:
     def pseudo_inverse(self, jacobian: np.ndarray) -> tuple[np.ndarray, float, bool]:
         """Weighted right pseudo-inverse ``J#``, damped near singularities.
 
-        See :func:`pbvs_pin.kernels.damped_pseudo_inverse`.
+        See :func:`damped_pseudo_inverse`.
 
         Args:
             jacobian: ``J`` in controller units. Shape (r, n).
@@ -198,7 +338,7 @@ class PassivityController:
         target_velocity: npt.ArrayLike,
         secondary: npt.ArrayLike,
     ) -> ControlOutput:
-        """Compute the command ``u`` of eq. (34) (:func:`~pbvs_pin.kernels.passivity_law`).
+        """Compute the command ``u`` of eq. (34) (:func:`passivity_law`).
 
         Args:
             error_px: ``xi - xi_d`` [px]. Shape (r,).

@@ -13,9 +13,51 @@ import abc
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.kernels import impedance_step, joint_limit_term, obstacle_force, posture_term
+
+
+@njit(cache=True)
+def posture_term(arm: np.ndarray, target: np.ndarray, gain: float) -> np.ndarray:
+    r"""Eq. (19): ``f_i = k_Lambda (theta_id - theta_i)``. Shape (n_arm,)."""
+    return gain * (target - arm)
+
+
+@njit(cache=True)
+def joint_limit_term(
+    arm: np.ndarray, lower: np.ndarray, upper: np.ndarray, margin: float, gain: float
+) -> np.ndarray:
+    """Restoring rates within ``margin`` of a limit; infinite limits give 0. Shape (n_arm,)."""
+    above = np.maximum(arm - (upper - margin), 0.0)
+    below = np.minimum(arm - (lower + margin), 0.0)
+    return -gain * (above + below)
+
+
+@njit(cache=True)
+def obstacle_force(distance: float, angle: float, k_u: float, k_w: float, d0: float) -> np.ndarray:
+    r"""Fictitious force of eqs. (17)-(18) before the impedance, ``[F_u, F_w]``.
+
+    .. math:: F_u = k_{uobs} (d_0 - d)(\tfrac{\pi}{2} - |\alpha|),\quad
+              F_\omega = k_{\omega obs} (d_0 - d)\, \mathrm{sign}(\alpha)(\tfrac{\pi}{2} - |\alpha|)
+
+    zero when ``d >= d_0`` or nothing is seen (``d`` infinite).
+    """
+    force = np.zeros(2)
+    if np.isfinite(distance) and distance < d0:
+        reach = (d0 - distance) * (0.5 * np.pi - abs(angle))
+        force[0] = k_u * reach
+        force[1] = k_w * np.sign(angle) * reach
+    return force
+
+
+@njit(cache=True)
+def impedance_step(
+    velocity: np.ndarray, force: np.ndarray, mass: float, damping: float, dt: float
+) -> np.ndarray:
+    """Exact step of ``m du/dt + b u = F`` over ``dt`` with ``F`` held (the ``Z^-1`` of (17))."""
+    decay = np.exp(-damping / mass * dt)
+    return decay * velocity + (1.0 - decay) * force / damping
 
 
 @dataclass(frozen=True)

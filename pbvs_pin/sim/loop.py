@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pbvs_pin.control.fused import FusedControlStep
 from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
+from pbvs_pin.control.step import FusedControlStep
 from pbvs_pin.sim.log import RunLog, RunRecorder
 from pbvs_pin.sim.obstacles import footprint_points
 from pbvs_pin.sim.perception import Perception
@@ -101,7 +101,7 @@ def simulate(
             )  # fmt: skip
         else:
             if fused is not None:
-                fused.memory[2, 0] = 0.0  # the command derivative restarts after a loss
+                fused.restart_derivative()  # the command derivative restarts after a loss
             output, jacobians = _control_step(
                 setup, perception, plant.q, laser_reading, t, control_dt
             )

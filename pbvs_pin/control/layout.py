@@ -1,0 +1,344 @@
+"""Named layout of the fused control step's three packed buffers (:mod:`pbvs_pin.control.step`).
+
+Calling a compiled function from Python costs about 0.1 us per argument and 0.7 us per array
+it returns, so the 1 kHz step takes its constants in one float array ``params`` and one integer
+array ``indices``, and keeps its memory and outputs in one float array ``state``. This module is
+the only place that knows where a quantity sits in them: its compiled functions cut the buffers
+into named tuples of views and values, which the step reads by name, and
+:class:`~pbvs_pin.control.step.FusedControlStep` fills the buffers through the same views.
+Numba builds the named tuples in nopython mode, with no Python work per call; the compiled
+functions are inlined into the step (``inline="always"``), so that cutting the buffers costs no
+more than the positional slicing it replaced.
+
+Units: ``[u]`` stands for the unit of each actuated velocity (m/s or rad/s), ``[q]`` for that
+of an arm joint position (rad or m).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+
+class Sizes(NamedTuple):
+    """The sizes, first in ``indices``."""
+
+    n: int
+    """Actuated velocities."""
+    r: int
+    """Features."""
+    nv: int
+    """Pinocchio velocities."""
+    n_arm: int
+    """Arm joints."""
+
+
+class Indices(NamedTuple):
+    """The constant integers, after the :class:`Sizes` in ``indices``."""
+
+    rows: np.ndarray
+    """Indices into ``[u1, v1, u2, v2, ...]`` forming ``xi``. Shape (r,)."""
+    arm_q_indices: np.ndarray
+    """Index of each arm joint in ``q``. Shape (n_arm,)."""
+    arm_continuous: np.ndarray
+    """1 where the joint is stored as (cos, sin) in ``q``. Shape (n_arm,)."""
+
+
+class Parameters(NamedTuple):
+    """Views of the constant floats in ``params``, in this order."""
+
+    xi_d: np.ndarray
+    """Desired features [px]. Shape (r,)."""
+    k: np.ndarray
+    """``k_i`` of ``K_c``, eq. (10) [1/s]. Shape (r,)."""
+    k1: np.ndarray
+    """Diagonal of ``k_1``, null-space amplitude [u]. Shape (n,)."""
+    k2: np.ndarray
+    """Diagonal of ``k_2``, null-space slope [1 / unit of Lambda]. Shape (n,)."""
+    velocity_limits: np.ndarray
+    """Largest magnitude of each command and velocity reference [u]. Shape (n,)."""
+    pseudo_inverse_damping: np.ndarray
+    """``[sigma_0, mu_max]`` of the damped pseudo-inverse (controller units). Shape (2,)."""
+    gain_inverse: np.ndarray
+    """``1 / K_v`` of the velocity loops, eq. (1). Shape (n,)."""
+    loop_damping: np.ndarray
+    """Viscous friction ``D`` of the velocity loops. Shape (n,)."""
+    gravity_weight: np.ndarray
+    """Diagonal of ``I - G`` (0 where the servo cancels gravity) [1]. Shape (n,)."""
+    compensated: np.ndarray
+    """1 on the rows eq. (20) compensates, 0 on those that pass ``u`` through. Shape (n,)."""
+    k_d: np.ndarray
+    """Diagonal of ``K_D``, eq. (20) [1/s]. Shape (n,)."""
+    weight_inverse: np.ndarray
+    """``W^-1`` of the pseudo-inverse. Shape (n, n)."""
+    posture_target: np.ndarray
+    """``theta_d`` of eq. (19) [q]. Shape (n_arm,)."""
+    lower: np.ndarray
+    """Lower arm joint limits of the joint-limit objective [q]. Shape (n_arm,)."""
+    upper: np.ndarray
+    """Upper arm joint limits [q]. Shape (n_arm,)."""
+    selection: np.ndarray
+    """``S``, actuated to Pinocchio velocities. Shape (nv, n)."""
+    settings: np.ndarray
+    """The scalar settings, read by :func:`settings`. Shape (len(Settings._fields),)."""
+
+
+class Settings(NamedTuple):
+    """The constant scalars, stored as floats in ``Parameters.settings``, in this order.
+
+    The objective fields default to "off": the step adds only the objectives switched on.
+    """
+
+    focal: float
+    """Focal length [px]."""
+    feature_scale: float
+    """Pixels per controller unit of feature [px]."""
+    pseudoinverse_feedback: bool
+    """Feed back ``J# K_c e`` instead of the paper's ``J^T K_c e``."""
+    derivative_time_constant: float
+    """Low-pass time constant of the command derivative ``u_dot`` [s]."""
+    n_base: int
+    """Base velocities (the first entries of ``v``)."""
+    posture: bool = False
+    """The arm posture objective of eq. (19) is on."""
+    posture_gain: float = 0.0
+    """Its ``k_Lambda`` [1/s]."""
+    joint_limits: bool = False
+    """The joint-limit objective is on."""
+    limit_margin: float = 0.0
+    """Width of its active zone [q]."""
+    limit_gain: float = 0.0
+    """Its gain [1/s]."""
+    obstacle: bool = False
+    """The obstacle avoidance of eqs. (17)-(18) is on."""
+    k_u: float = 0.0
+    """``k_uobs`` [1/(rad s)]."""
+    k_w: float = 0.0
+    """``k_wobs`` [1/s]."""
+    d0: float = 0.0
+    """Distance at which avoidance starts [m]."""
+    impedance_mass: float = 0.0
+    """Impedance inertia ``m`` [s]."""
+    impedance_damping: float = 0.0
+    """Impedance damping ``b`` [1]."""
+
+
+class State(NamedTuple):
+    """Views of the memory and outputs in ``state``, in this order."""
+
+    u_previous: np.ndarray
+    """The previous step's command [u]. Shape (n,)."""
+    u_dot: np.ndarray
+    """Low-pass filtered command derivative [u/s]. Shape (n,)."""
+    impedance_velocity: np.ndarray
+    """``[u_obs, omega_obs]``, the obstacle impedance's output [m/s, rad/s]. Shape (2,)."""
+    u: np.ndarray
+    """Command of eq. (34) [u]. Shape (n,)."""
+    v_ref: np.ndarray
+    """Velocity reference of eq. (20) [u]. Shape (n,)."""
+    nu: np.ndarray
+    """``J^T K_c e`` in controller units. Shape (n,)."""
+    feedforward: np.ndarray
+    """``J# J_o phat_dot`` [u]. Shape (n,)."""
+    null_space: np.ndarray
+    """``(I - J# J) k1 tanh(k2 Lambda)`` [u]. Shape (n,)."""
+    xi: np.ndarray
+    """Measured features [px]. Shape (r,)."""
+    jacobian: np.ndarray
+    """``J`` of eq. (3) [px per u]. Shape (r, n)."""
+    object_jacobian: np.ndarray
+    """``J_o`` of eq. (3) [px/m]. Shape (r, 3)."""
+    scalars: np.ndarray
+    """The scalar state, read by :func:`step_scalars`. Shape (len(StepScalars._fields),)."""
+
+
+class StepScalars(NamedTuple):
+    """The scalars in ``State.scalars``, in this order; flags are 1.0 (true) or 0.0."""
+
+    has_previous: float
+    """``u_previous`` holds a command, so the next step differentiates it."""
+    valid: float
+    """The inputs were finite (else ``u`` is zero)."""
+    storage: float
+    """``V1`` of eq. (7) in controller units [1/s]."""
+    sigma_min: float
+    """Smallest singular value of ``J W^-1/2`` (controller units)."""
+    damped: float
+    """The pseudo-inverse was damped."""
+    factor: float
+    """Factor the command was scaled by to respect the velocity limits (1: unsaturated)."""
+    v2: float
+    """``V2 = |v - u|^2 / 2`` of eq. (22) [u^2]."""
+
+
+SIZES = len(Sizes._fields)
+SETTINGS = len(Settings._fields)
+STEP_SCALARS = len(StepScalars._fields)
+
+
+def pack_indices(
+    sizes: Sizes, rows: np.ndarray, arm_q_indices: np.ndarray, arm_continuous: np.ndarray
+) -> np.ndarray:
+    """``indices``: the sizes, then the fields of :class:`Indices`. Shape (SIZES + r + 2 n_arm,)."""
+    return np.concatenate([sizes, rows, arm_q_indices, arm_continuous]).astype(np.int64)
+
+
+@njit(cache=True, inline="always")
+def sizes(indices: np.ndarray) -> Sizes:
+    """The :class:`Sizes` at the start of ``indices``."""
+    return Sizes(n=indices[0], r=indices[1], nv=indices[2], n_arm=indices[3])
+
+
+@njit(cache=True, inline="always")
+def index_views(indices: np.ndarray) -> Indices:
+    """Views of the constant integers in ``indices``."""
+    size = sizes(indices)
+    rows, a = _cut(indices, SIZES, size.r)
+    arm_q_indices, a = _cut(indices, a, size.n_arm)
+    arm_continuous, a = _cut(indices, a, size.n_arm)
+    return Indices(rows=rows, arm_q_indices=arm_q_indices, arm_continuous=arm_continuous)
+
+
+@njit(cache=True, inline="always")
+def parameter_size(indices: np.ndarray) -> int:
+    """Length of ``params``: the sum of the :class:`Parameters` fields' sizes."""
+    n, r, nv, n_arm = sizes(indices)
+    return 2 * r + 8 * n + 2 + n * n + 3 * n_arm + nv * n + SETTINGS
+
+
+@njit(cache=True, inline="always")
+def parameter_views(params: np.ndarray, indices: np.ndarray) -> Parameters:
+    """Views of the constant floats in ``params`` (shape (parameter_size(indices),))."""
+    n, r, nv, n_arm = sizes(indices)
+    xi_d, a = _cut(params, 0, r)
+    k, a = _cut(params, a, r)
+    k1, a = _cut(params, a, n)
+    k2, a = _cut(params, a, n)
+    velocity_limits, a = _cut(params, a, n)
+    pseudo_inverse_damping, a = _cut(params, a, 2)
+    gain_inverse, a = _cut(params, a, n)
+    loop_damping, a = _cut(params, a, n)
+    gravity_weight, a = _cut(params, a, n)
+    compensated, a = _cut(params, a, n)
+    k_d, a = _cut(params, a, n)
+    weight_inverse, a = _cut(params, a, n * n)
+    posture_target, a = _cut(params, a, n_arm)
+    lower, a = _cut(params, a, n_arm)
+    upper, a = _cut(params, a, n_arm)
+    selection, a = _cut(params, a, nv * n)
+    settings_block, a = _cut(params, a, SETTINGS)
+    return Parameters(
+        xi_d=xi_d,
+        k=k,
+        k1=k1,
+        k2=k2,
+        velocity_limits=velocity_limits,
+        pseudo_inverse_damping=pseudo_inverse_damping,
+        gain_inverse=gain_inverse,
+        loop_damping=loop_damping,
+        gravity_weight=gravity_weight,
+        compensated=compensated,
+        k_d=k_d,
+        weight_inverse=weight_inverse.reshape((n, n)),
+        posture_target=posture_target,
+        lower=lower,
+        upper=upper,
+        selection=selection.reshape((nv, n)),
+        settings=settings_block,
+    )
+
+
+@njit(cache=True, inline="always")
+def settings(block: np.ndarray) -> Settings:
+    """The :class:`Settings` stored in ``block`` (``Parameters.settings``)."""
+    return Settings(
+        focal=block[0],
+        feature_scale=block[1],
+        pseudoinverse_feedback=block[2] > 0.0,
+        derivative_time_constant=block[3],
+        n_base=int(block[4]),
+        posture=block[5] > 0.0,
+        posture_gain=block[6],
+        joint_limits=block[7] > 0.0,
+        limit_margin=block[8],
+        limit_gain=block[9],
+        obstacle=block[10] > 0.0,
+        k_u=block[11],
+        k_w=block[12],
+        d0=block[13],
+        impedance_mass=block[14],
+        impedance_damping=block[15],
+    )
+
+
+@njit(cache=True, inline="always")
+def state_size(indices: np.ndarray) -> int:
+    """Length of ``state``: the sum of the :class:`State` fields' sizes."""
+    n, r, _, _ = sizes(indices)
+    return 7 * n + 2 + r + r * n + 3 * r + STEP_SCALARS
+
+
+@njit(cache=True, inline="always")
+def state_views(state: np.ndarray, indices: np.ndarray) -> State:
+    """Views of the memory and outputs in ``state`` (shape (state_size(indices),))."""
+    n, r, _, _ = sizes(indices)
+    u_previous, a = _cut(state, 0, n)
+    u_dot, a = _cut(state, a, n)
+    impedance_velocity, a = _cut(state, a, 2)
+    u, a = _cut(state, a, n)
+    v_ref, a = _cut(state, a, n)
+    nu, a = _cut(state, a, n)
+    feedforward, a = _cut(state, a, n)
+    null_space, a = _cut(state, a, n)
+    xi, a = _cut(state, a, r)
+    jacobian, a = _cut(state, a, r * n)
+    object_jacobian, a = _cut(state, a, r * 3)
+    scalars, a = _cut(state, a, STEP_SCALARS)
+    return State(
+        u_previous=u_previous,
+        u_dot=u_dot,
+        impedance_velocity=impedance_velocity,
+        u=u,
+        v_ref=v_ref,
+        nu=nu,
+        feedforward=feedforward,
+        null_space=null_space,
+        xi=xi,
+        jacobian=jacobian.reshape((r, n)),
+        object_jacobian=object_jacobian.reshape((r, 3)),
+        scalars=scalars,
+    )
+
+
+@njit(cache=True, inline="always")
+def step_scalars(block: np.ndarray) -> StepScalars:
+    """The :class:`StepScalars` stored in ``block`` (``State.scalars``)."""
+    return StepScalars(
+        has_previous=block[0],
+        valid=block[1],
+        storage=block[2],
+        sigma_min=block[3],
+        damped=block[4],
+        factor=block[5],
+        v2=block[6],
+    )
+
+
+@njit(cache=True, inline="always")
+def store(block: np.ndarray, values: StepScalars) -> None:
+    """Write ``values`` into ``block`` (``State.scalars``) in their field order."""
+    for i in range(len(values)):
+        block[i] = values[i]
+
+
+def slot(record: type[NamedTuple], name: str) -> int:
+    """Position of field ``name`` of a scalar block (:class:`Settings`, :class:`StepScalars`)."""
+    return record._fields.index(name)
+
+
+@njit(cache=True, inline="always")
+def _cut(buffer: np.ndarray, start: int, count: int) -> tuple[np.ndarray, int]:
+    """The ``count`` entries of ``buffer`` from ``start``, and the offset after them."""
+    return buffer[start : start + count], start + count

@@ -1,0 +1,303 @@
+r"""The whole control step in one compiled call, for the 1 kHz loop.
+
+:func:`fused_control_step` composes the equations' compiled kernels exactly as the modular
+classes do, each from the module named for it: the secondary objectives of eqs. (16)-(19)
+(:mod:`pbvs_pin.control.secondary`), the features and Jacobians of eq. (3)
+(:mod:`pbvs_pin.features`), the passivity law of eq. (34) (:mod:`pbvs_pin.control.kinematic`)
+and the dynamic compensation of eq. (20) (:mod:`pbvs_pin.control.compensation`).
+:class:`FusedControlStep` packs the controller's model, gains and built-in secondary
+objectives once, in the buffers named by :mod:`pbvs_pin.control.layout`; then each step makes
+its Pinocchio calls and one call of :func:`fused_control_step`. A scenario with the IBVS
+baseline or a user-defined objective uses the modular classes.
+
+Numba keys its on-disk cache on each compiled function's own file, so the cached
+:func:`fused_control_step` does not notice an edit of a kernel it composes from another module.
+After editing a kernel, delete the caches (``find pbvs_pin -name '*.nb[ci]' -delete``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+from numba import njit
+
+from pbvs_pin.control import layout
+from pbvs_pin.control.compensation import DynamicCompensator, compensation_law
+from pbvs_pin.control.ibvs import ClassicIbvs
+from pbvs_pin.control.kinematic import ControlOutput, PassivityController, passivity_law
+from pbvs_pin.control.secondary import (
+    ArmPosture,
+    JointLimitAvoidance,
+    ObstacleAvoidance,
+    SecondaryObjective,
+    impedance_step,
+    joint_limit_term,
+    obstacle_force,
+    posture_term,
+)
+from pbvs_pin.features import feature_jacobians
+from pbvs_pin.linalg import matmul
+from pbvs_pin.robot import arm_angles
+
+LOCAL = pin.LOCAL
+
+if TYPE_CHECKING:
+    from pbvs_pin.features import FeatureSet, ImageMeasurement
+    from pbvs_pin.robot import MobileManipulator
+
+
+@njit(cache=True)
+def fused_control_step(
+    frame_jacobian: np.ndarray,
+    rotation: np.ndarray,
+    mass_upper: np.ndarray,
+    bias: np.ndarray,
+    gravity: np.ndarray,
+    q: np.ndarray,
+    v: np.ndarray,
+    points: np.ndarray,
+    depths: np.ndarray,
+    target_velocity: np.ndarray,
+    laser: np.ndarray,
+    dt: float,
+    params: np.ndarray,
+    indices: np.ndarray,
+    state: np.ndarray,
+) -> None:
+    """One whole control step in one call: eqs. (16)-(19), (3), (34) and (20).
+
+    Args:
+        frame_jacobian: Camera frame Jacobian, ``pin.LOCAL``. Shape (6, nv).
+        rotation: ``wRc``. Shape (3, 3).
+        mass_upper: ``pin.crba``. Shape (nv, nv).
+        bias: ``pin.nonLinearEffects`` at ``S v``. Shape (nv,).
+        gravity: ``pin.computeGeneralizedGravity``. Shape (nv,).
+        q: Configuration. Shape (nq,).
+        v: Actuated velocity. Shape (n,).
+        points: Measured image points [px]. Shape (k, 2).
+        depths: Their depths [m]. Shape (k,).
+        target_velocity: ``phat_dot`` [m/s]. Shape (3,).
+        laser: ``[d, alpha]`` of the nearest return [m, rad]. Shape (2,).
+        dt: Control period [s].
+        params: Constant floats, :class:`~pbvs_pin.control.layout.Parameters`.
+        indices: Sizes and constant integers, :class:`~pbvs_pin.control.layout.Indices`.
+        state: Memory and outputs, :class:`~pbvs_pin.control.layout.State`; updated in place.
+    """
+    p = layout.parameter_views(params, indices)
+    setting = layout.settings(p.settings)
+    index = layout.index_views(indices)
+    out = layout.state_views(state, indices)
+    n, n_base = p.selection.shape[1], setting.n_base
+    # eq. (16): Lambda from the objectives switched on
+    theta = arm_angles(q, index.arm_q_indices, index.arm_continuous)
+    secondary = np.zeros(n)
+    if setting.posture:
+        secondary[n_base:] += posture_term(theta, p.posture_target, setting.posture_gain)
+    if setting.joint_limits:
+        secondary[n_base:] += joint_limit_term(
+            theta, p.lower, p.upper, setting.limit_margin, setting.limit_gain
+        )
+    if setting.obstacle:
+        distance, angle = laser[0], laser[1]
+        force = obstacle_force(distance, angle, setting.k_u, setting.k_w, setting.d0)
+        impedance = impedance_step(
+            out.impedance_velocity, force, setting.impedance_mass, setting.impedance_damping, dt
+        )
+        out.impedance_velocity[:] = impedance
+        if n_base >= 2:
+            secondary[0] -= impedance[0]
+            secondary[n_base - 1] += impedance[1]
+    # eq. (3)
+    xi, jacobian, object_jacobian = feature_jacobians(
+        points, depths, index.rows, setting.focal, matmul(frame_jacobian, p.selection), rotation.T
+    )
+    out.xi[:] = xi
+    out.jacobian[:, :] = jacobian
+    out.object_jacobian[:, :] = object_jacobian
+    # eq. (34), in controller units of feature_scale px
+    scale = setting.feature_scale
+    error = (xi - p.xi_d) / scale
+    jacobian /= scale
+    object_jacobian /= scale
+    valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor = passivity_law(
+        error, jacobian, object_jacobian, target_velocity, secondary, p.k, p.k1, p.k2,
+        p.weight_inverse, p.pseudo_inverse_damping, p.velocity_limits,
+        setting.pseudoinverse_feedback,
+    )  # fmt: skip
+    # eq. (20), with the low-pass filtered derivative of the command
+    if layout.step_scalars(out.scalars).has_previous > 0.0 and dt > 0.0:
+        blend = dt / (setting.derivative_time_constant + dt)
+        for j in range(n):
+            out.u_dot[j] += blend * ((u[j] - out.u_previous[j]) / dt - out.u_dot[j])
+    out.u_previous[:] = u
+    v_ref, v2 = compensation_law(
+        mass_upper, bias, gravity, p.selection, p.gain_inverse, p.loop_damping,
+        p.gravity_weight, p.compensated, p.k_d, v, u, out.u_dot, p.velocity_limits,
+    )  # fmt: skip
+    out.u[:] = u
+    out.v_ref[:] = v_ref
+    out.nu[:] = nu
+    out.feedforward[:] = feedforward
+    out.null_space[:] = null_space
+    layout.store(
+        out.scalars,
+        layout.StepScalars(
+            has_previous=1.0,
+            valid=1.0 if valid else 0.0,
+            storage=storage,
+            sigma_min=sigma_min,
+            damped=1.0 if damped else 0.0,
+            factor=factor,
+            v2=v2,
+        ),
+    )
+
+
+class FusedControlStep:
+    """Eqs. (16)-(20) with one compiled call per step.
+
+    Args:
+        model: The controller's model of the robot.
+        features: The feature set.
+        xi_d: Desired features [px]. Shape (r,).
+        controller: The passivity controller (its gains).
+        compensator: The dynamic compensator (its loop model, rows, ``K_D``).
+        objectives: Built-in secondary objectives (at most one of each kind).
+    """
+
+    def __init__(
+        self,
+        model: MobileManipulator,
+        features: FeatureSet,
+        xi_d: np.ndarray,
+        controller: PassivityController,
+        compensator: DynamicCompensator,
+        objectives: list[SecondaryObjective],
+    ) -> None:
+        self.model = model
+        n, r = model.n, features.size
+        size = layout.Sizes(n=n, r=r, nv=model.model.nv, n_arm=model.n_arm)
+        self.indices = layout.pack_indices(
+            size, features.rows, model.arm_q_indices, model.arm_continuous
+        )
+        self.params = np.zeros(layout.parameter_size(self.indices))
+        p = layout.parameter_views(self.params, self.indices)
+        loop = compensator.loop
+        p.xi_d[:] = xi_d
+        p.k[:] = controller.feature_gains(r)
+        p.k1[:] = controller.k1
+        p.k2[:] = controller.k2
+        p.velocity_limits[:] = controller.velocity_limits
+        p.pseudo_inverse_damping[:] = controller.damping
+        p.gain_inverse[:] = 1.0 / loop.gains
+        p.loop_damping[:] = loop.damping
+        p.gravity_weight[:] = loop.gravity_weight
+        p.compensated[:] = compensator.rows
+        p.k_d[:] = compensator.k_d
+        p.weight_inverse[:] = controller.weight_inverse
+        p.lower[:], p.upper[:] = model.arm_position_limits()
+        p.selection[:] = model.selection
+        switched_on = {}
+        for objective in objectives:
+            if isinstance(objective, ArmPosture):
+                p.posture_target[:] = objective.target
+                switched_on.update(posture=True, posture_gain=objective.gain)
+            elif isinstance(objective, JointLimitAvoidance):
+                p.lower[:], p.upper[:] = objective.lower, objective.upper
+                switched_on.update(
+                    joint_limits=True, limit_margin=objective.margin, limit_gain=objective.gain
+                )
+            elif isinstance(objective, ObstacleAvoidance):
+                switched_on.update(
+                    obstacle=True, k_u=objective.k_u, k_w=objective.k_w, d0=objective.d0,
+                    impedance_mass=objective.mass, impedance_damping=objective.damping,
+                )  # fmt: skip
+        p.settings[:] = layout.Settings(
+            focal=model.camera.focal_px,
+            feature_scale=controller.gains.feature_scale,
+            pseudoinverse_feedback=controller.gains.use_pseudoinverse_feedback,
+            derivative_time_constant=compensator.tau,
+            n_base=model.n_base,
+            **switched_on,
+        )
+        self.xi_d = p.xi_d
+        self.state = np.zeros(layout.state_size(self.indices))
+        self.views = layout.state_views(self.state, self.indices)
+        """Named views of ``state``, the last step's memory and outputs."""
+        self._u, self._v_ref, self._scalars = self.views.u, self.views.v_ref, self.views.scalars
+        self._v2 = layout.slot(layout.StepScalars, "v2")
+        self._has_previous = layout.slot(layout.StepScalars, "has_previous")
+        self._pinocchio = (
+            model.model,
+            model.data,
+            model.camera_frame_id,
+            model.selection,
+            np.zeros(model.model.nv),
+        )
+
+    @staticmethod
+    def supports(controller: PassivityController, objectives: list[SecondaryObjective]) -> bool:
+        """Whether the fused step reproduces this controller and these objectives."""
+        kinds = [type(objective) for objective in objectives]
+        built_in = all(
+            kind in (ArmPosture, JointLimitAvoidance, ObstacleAvoidance) for kind in kinds
+        )
+        return (
+            not isinstance(controller, ClassicIbvs) and built_in and len(set(kinds)) == len(kinds)
+        )
+
+    def step(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        measurement: ImageMeasurement,
+        target_velocity: np.ndarray,
+        laser: np.ndarray,
+        dt: float,
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        """Command and velocity reference for one control period.
+
+        Args:
+            q: Configuration. Shape (nq,).
+            v: Measured actuated velocity. Shape (n,).
+            measurement: The newest image measurement.
+            target_velocity: ``phat_dot`` [m/s]. Shape (3,).
+            laser: ``[d, alpha]``. Shape (2,).
+            dt: Control period [s].
+
+        Returns:
+            ``u`` (n,), ``v_ref`` (n,), ``V2``: views into a buffer that the next step
+            overwrites. Zero ``u`` when an input is not finite.
+        """
+        model, data, frame, selection, v_pin = self._pinocchio
+        pin.computeJointJacobians(model, data, q)
+        rotation = pin.updateFramePlacement(model, data, frame).rotation
+        jacobian = pin.getFrameJacobian(model, data, frame, LOCAL)
+        mass = pin.crba(model, data, q)
+        np.dot(selection, v, out=v_pin)
+        bias = pin.nonLinearEffects(model, data, q, v_pin)
+        gravity = pin.computeGeneralizedGravity(model, data, q)
+        fused_control_step(
+            jacobian, rotation, mass, bias, gravity, q, v, measurement.points,
+            measurement.depths, target_velocity, laser, dt, self.params, self.indices, self.state,
+        )  # fmt: skip
+        return self._u, self._v_ref, self._scalars[self._v2]
+
+    def restart_derivative(self) -> None:
+        """Forget the stored command: the next step does not differentiate it (after a loss)."""
+        self._scalars[self._has_previous] = 0.0
+
+    def output(self) -> tuple[ControlOutput, tuple[np.ndarray, np.ndarray]]:
+        """The last step's diagnostics, as the modular controller reports them."""
+        views = self.views
+        scalars = layout.StepScalars._make(views.scalars.tolist())
+        output = ControlOutput(
+            u=views.u.copy(), error=views.xi - self.xi_d, storage=scalars.storage,
+            nu=views.nu.copy(), feedforward=views.feedforward.copy(),
+            null_space=views.null_space.copy(), min_singular_value=scalars.sigma_min,
+            damped=bool(scalars.damped), saturated=scalars.factor < 1.0, scale=scalars.factor,
+            valid=bool(scalars.valid),
+        )  # fmt: skip
+        return output, (views.jacobian.copy(), views.object_jacobian.copy())
