@@ -20,8 +20,10 @@ import numpy as np
 import pinocchio as pin
 
 from pbvs_pin.control.step import FusedControlStep
-from pbvs_pin.sim.loop import Perception, build, simulate
+from pbvs_pin.sim.loop import simulate
+from pbvs_pin.sim.perception import Perception
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.sim.setup import build
 
 REPEATS = 15
 CALLS = 500

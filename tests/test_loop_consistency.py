@@ -3,8 +3,10 @@
 import numpy as np
 import pytest
 
-from pbvs_pin.sim.loop import Perception, _control_step, build
+from pbvs_pin.sim.loop import _control_step
+from pbvs_pin.sim.perception import Perception
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.sim.setup import build
 
 
 def test_loop_jacobians_match_the_feature_set_at_the_current_configuration():

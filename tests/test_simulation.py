@@ -25,7 +25,7 @@ from simhelpers import (
 
 from pbvs_pin.manipulability import arm_manipulability
 from pbvs_pin.sim.log import CHANNELS, RunLog
-from pbvs_pin.sim.loop import build, simulate
+from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.obstacles import (
     BoxObstacle,
     CircleObstacle,
@@ -34,6 +34,7 @@ from pbvs_pin.sim.obstacles import (
     footprint_points,
 )
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.sim.setup import build
 
 
 # ---------------------------------------------------------------- runs (once per module)
