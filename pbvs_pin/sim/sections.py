@@ -242,7 +242,7 @@ class RobotSection(Section):
     initial_arm: tuple[float, ...] | None = key(
         None, "Arm joint positions at the start [rad or m], one per arm joint; home if absent."
     )
-    source: str = ""
+    source: str = field(default="", compare=False)
 
     @classmethod
     def from_toml(cls, table: Mapping[str, Any], source: str) -> Self:
