@@ -9,21 +9,52 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tomllib
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pbvs_pin.exceptions import GainError, PbvsError
+from pbvs_pin.exceptions import GainError, PbvsError, ScenarioError
 from pbvs_pin.validation import positive_number
+
+if TYPE_CHECKING:
+    from pbvs_pin.robot import MobileManipulator
+
+
+def load_robot_argument(argument: str) -> MobileManipulator:
+    """The robot of ``info`` and ``view``: a shipped name, a URDF path, or a TOML file.
+
+    A TOML file (``.toml``) holds a ``[robot]`` table: a robot file, or a whole scenario
+    (whose ``[camera]`` then gives the intrinsics).
+
+    Raises:
+        RobotNotFound: If a name is neither shipped nor a file.
+        UrdfError: If a URDF path is missing or malformed.
+        ScenarioError: If the TOML file is missing, malformed, has no ``[robot]`` table, or
+            its robot cannot be built (naming the dotted field).
+    """
+    from pbvs_pin.catalogue import build_robot
+    from pbvs_pin.sim.scenario import load_scenario
+
+    if Path(argument).suffix.lower() != ".toml":
+        return build_robot(argument)
+    if not Path(argument).is_file():
+        raise ScenarioError(argument, "", "no such robot or scenario file")
+    scenario = load_scenario(argument)
+    if "robot" not in tomllib.loads(Path(argument).read_text()):
+        raise ScenarioError(
+            argument, "robot", 'no [robot] table; add one, e.g. [robot] name = "pioneer_cyton"'
+        )
+    return scenario.robot.build(scenario.camera.intrinsics())
 
 
 def _info(args: argparse.Namespace) -> None:
     """Print a robot's dof, joints, limits, camera and manipulability."""
-    from pbvs_pin.catalogue import build_robot
     from pbvs_pin.manipulability import arm_manipulability, whole_body_manipulability
 
-    robot = build_robot(args.robot)
+    robot = load_robot_argument(args.robot)
     q = robot.home()
     lower, upper = robot.arm_position_limits()
     print(f"robot: {args.robot}  ({robot.source})")
@@ -75,7 +106,7 @@ def _view(args: argparse.Namespace) -> None:
     """Show a robot at home with its camera frame and frustum."""
     from pbvs_pin.viz.live import view_robot
 
-    view_robot(args.robot, Path(args.html) if args.html else None)
+    view_robot(load_robot_argument(args.robot), Path(args.html) if args.html else None)
 
 
 def _analyze(args: argparse.Namespace) -> None:
@@ -111,6 +142,13 @@ def _positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from err
 
 
+ROBOT_HELP = (
+    "shipped robot name (e.g. pioneer_cyton), URDF path with a camera_optical_frame, or a "
+    "TOML file with a [robot] table (a robot file or a scenario)"
+)
+"""Help of the robot argument of ``info`` and ``view``."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every subcommand."""
     parser = argparse.ArgumentParser(
@@ -118,8 +156,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Passivity-based visual servoing of mobile manipulators (Pinocchio).",
     )
     commands = parser.add_subparsers(dest="command", required=True)
-    info = commands.add_parser("info", help="describe a robot (shipped name or URDF path)")
-    info.add_argument("robot", help="shipped robot name (e.g. pioneer_cyton) or URDF path")
+    info = commands.add_parser("info", help="describe a robot (name, URDF or TOML [robot])")
+    info.add_argument("robot", help=ROBOT_HELP)
     info.set_defaults(handler=_info)
     run = commands.add_parser("run", help="simulate one scenario (shipped name or TOML path)")
     run.add_argument("scenario")
@@ -137,7 +175,7 @@ def build_parser() -> argparse.ArgumentParser:
     reproduce.add_argument("--out", default="results", help="output folder")
     reproduce.set_defaults(handler=_reproduce)
     view = commands.add_parser("view", help="show a robot, its camera frame and frustum")
-    view.add_argument("robot", help="shipped robot name or URDF path")
+    view.add_argument("robot", help=ROBOT_HELP)
     view.add_argument("--html", help="write a standalone HTML file instead of serving")
     view.set_defaults(handler=_view)
     analyze = commands.add_parser("analyze", help="passivity and L2-gain analysis of a run")

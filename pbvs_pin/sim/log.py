@@ -165,7 +165,7 @@ class RunRecorder:
         meta = {
             "scenario": scenario.name,
             "source": scenario.source,
-            "robot": scenario.robot.name,
+            **setup.robot_meta(),
             "law": scenario.controller.law,
             "feature_scale": gains.feature_scale,
             "k": list(np.broadcast_to(np.asarray(gains.k, dtype=float), (3,))),

@@ -16,6 +16,7 @@ import numpy as np
 
 from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
 from pbvs_pin.control.step import FusedControlStep
+from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog, RunRecorder
 from pbvs_pin.sim.obstacles import footprint_points
 from pbvs_pin.sim.perception import Perception
@@ -49,6 +50,7 @@ def simulate(
     scenario: Scenario,
     progress: bool = False,
     observer: Callable[[Snapshot], None] | None = None,
+    robot: MobileManipulator | None = None,
 ) -> RunLog:
     """Run one scenario and return its log.
 
@@ -56,11 +58,13 @@ def simulate(
         scenario: A validated scenario.
         progress: Show a progress bar (tqdm) on stderr.
         observer: Called with a :class:`Snapshot` at every logged instant (a live view).
+        robot: A built robot that replaces the scenario's ``[robot]`` table; see
+            :func:`pbvs_pin.sim.setup.build`.
 
     Returns:
         The run's log (arrays at the log rate) with its setup's key facts.
     """
-    setup = build(scenario)
+    setup = build(scenario, robot)
     plant_dt = scenario.simulation.plant_dt
     substeps = max(1, round(1.0 / (scenario.controller.rate * plant_dt)))
     control_dt = substeps * plant_dt

@@ -12,14 +12,18 @@ names the file and the dotted field.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import Field, dataclass, field, fields
+from dataclasses import Field, dataclass, field, fields, replace
 from enum import Enum
+from pathlib import Path
 from typing import Any, ClassVar, Self
 
 from pbvs_pin.camera import CameraIntrinsics
+from pbvs_pin.catalogue import REFERENCE_ROBOT
 from pbvs_pin.control.kinematic import ServoGains
 from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.exceptions import GainError, ScenarioError
+from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.robot_spec import DRIVE_KEYS, HINTS, REQUIRED, ROBOT_FORMS, build_robot_from, is_path
 
 
 class Sign(Enum):
@@ -37,12 +41,14 @@ def key(
     sign: Sign = Sign.ANY,
     choices: tuple[str, ...] = (),
     length: int | None = None,
+    optional: type | None = None,
 ) -> Any:
     """A scenario key: a dataclass field with its default, documentation and check.
 
     The default also fixes the key's type: a string, a boolean, a float (an integer is
     accepted and converted), an integer (any number is kept as written), or a tuple of numbers
-    (a TOML array, possibly of arrays; ``None`` as default means "array or absent").
+    (a TOML array, possibly of arrays; ``None`` as default means "array or absent", or
+    "``optional`` or absent" when ``optional`` gives a scalar type).
 
     Args:
         default: Value when the file does not give the key.
@@ -50,8 +56,12 @@ def key(
         sign: Sign every number in the value must have.
         choices: The allowed strings, if the key is a choice.
         length: Required number of entries of an array.
+        optional: With a ``None`` default, the type of the value when given (``float``,
+            ``str``); arrays when not given.
     """
-    metadata = {"doc": doc, "sign": sign, "choices": choices, "length": length}
+    metadata = {
+        "doc": doc, "sign": sign, "choices": choices, "length": length, "optional": optional
+    }  # fmt: skip
     return field(default=default, metadata=metadata)
 
 
@@ -137,14 +147,17 @@ def _numbers(value: Any) -> list:
 def _checked(spec: Field, value: Any) -> Any:
     """``value`` converted to the key's type and checked, or a GainError naming the key."""
     meta = spec.metadata
-    value = _typed(spec.name, value, spec.default)
+    default = spec.default
+    if default is None and value is not None and meta["optional"] is not None:
+        default = meta["optional"]()
+    value = _typed(spec.name, value, default)
+    if value is None:
+        return value
     if meta["choices"] and value not in meta["choices"]:
         raise GainError(f"expected one of {meta['choices']}, got {value!r}", spec.name)
     if meta["length"] is not None and len(value) != meta["length"]:
         shown = _plain(value)
         raise GainError(f"expected {meta['length']} values, got {len(value)}: {shown}", spec.name)
-    if value is None:
-        return value
     numbers = _numbers(value)
     if meta["sign"] is Sign.POSITIVE and not all(is_number(x) and x > 0 for x in numbers):
         raise GainError(f"expected positive values, got {_plain(value)}", spec.name)
@@ -182,13 +195,123 @@ POSITIVE, NON_NEGATIVE = Sign.POSITIVE, Sign.NON_NEGATIVE
 
 @dataclass(frozen=True)
 class RobotSection(Section):
-    """``[robot]``: which robot, and where its arm starts."""
+    """``[robot]``: which robot, in one of three forms, and where its arm starts.
+
+    The forms (:data:`ROBOT_FORMS`) are a shipped ``name``; a ``urdf`` file with its
+    ``camera_frame``; or an assembly of a ``base`` and an ``arm`` at ``mount`` with the camera
+    at ``camera_pose`` in ``camera_link``. A file gives exactly one; none is the reference
+    robot. Relative URDF paths (``urdf``, and ``base``/``arm`` ending in ``.urdf``) are read
+    against the folder of the file (:attr:`source`) and kept absolute. The drive parameters
+    replace the drive axle found in the platform URDF (:mod:`pbvs_pin.robot_spec`).
+
+    Attributes:
+        source: File the table was read from, for error messages and relative paths.
+    """
 
     TABLE: ClassVar[str] = "robot"
-    name: str = key("pioneer_cyton", "Shipped robot name or URDF path.")
+    name: str = key("", "Shipped robot name; pioneer_cyton when no form is given.")
+    urdf: str = key("", "URDF file holding platform, arm and camera frame.")
+    camera_frame: str = key("", "The urdf's camera optical frame (z forward, x right, y down).")
+    base: str = key(
+        "", "Platform of an assembly: shipped URDF name, URDF path or example-robot-data name."
+    )
+    arm: str = key("", "Arm mounted on the base (as base); absent when the base carries one.")
+    mount: tuple[float, ...] | None = key(
+        None, "Arm root pose in the platform's root link, [x, y, z, roll, pitch, yaw] [m, rad].",
+        length=6,
+    )  # fmt: skip
+    camera_link: str = key("", "Link of the assembly the camera is fixed to.")
+    camera_pose: tuple[float, ...] | None = key(
+        None, "Optical frame in camera_link, [x, y, z, roll, pitch, yaw] [m, rad].", length=6
+    )
+    wheel_radius: float | None = key(
+        None, "Drive wheel radius [m]; from the platform URDF if absent.", sign=POSITIVE,
+        optional=float,
+    )  # fmt: skip
+    track: float | None = key(
+        None, "Distance between left and right wheels [m]; from the platform URDF if absent.",
+        sign=POSITIVE, optional=float,
+    )  # fmt: skip
+    wheel_speed_limit: float | None = key(
+        None, "Largest wheel speed [rad/s]; from the platform URDF if absent.", sign=POSITIVE,
+        optional=float,
+    )  # fmt: skip
+    home: tuple[float, ...] | None = key(
+        None, "Arm home posture [rad or m], one per arm joint; the robot's own if absent."
+    )
     initial_arm: tuple[float, ...] | None = key(
         None, "Arm joint positions at the start [rad or m], one per arm joint; home if absent."
     )
+    source: str = field(default="", compare=False)
+
+    @classmethod
+    def from_toml(cls, table: Mapping[str, Any], source: str) -> Self:
+        """The table with relative URDF paths read against ``source``'s folder.
+
+        Raises:
+            ScenarioError: On an unknown key, an invalid value or an invalid combination of
+                forms, naming the dotted field.
+        """
+        folder = Path(source).parent
+        table = {
+            name: str(folder / value) if isinstance(value, str) and is_path(name, value) else value
+            for name, value in table.items()
+        }
+        return replace(super().from_toml(table, source), source=source)
+
+    def validate(self) -> None:
+        """Exactly one form, with every key it needs (GainError naming the key at fault)."""
+        given = [form for form, names in ROBOT_FORMS.items() if any(self._has(n) for n in names)]
+        if len(given) > 1:
+            first, second = (next(n for n in ROBOT_FORMS[f] if self._has(n)) for f in given[:2])
+            raise GainError(
+                f"cannot be combined with robot.{first}: give one form, a shipped name, a urdf "
+                "with its camera_frame, or an assembly (base, arm, mount, camera_link, "
+                "camera_pose)",
+                second,
+            )
+        if not given:
+            object.__setattr__(self, "name", REFERENCE_ROBOT)
+            given = ["name"]
+        for name, needed in REQUIRED[given[0]]:
+            if not self._has(name) and all(self._has(n) for n in needed):
+                raise GainError(f"missing; add {name} = {HINTS[name]}", name)
+        drive = [self._has(name) for name in DRIVE_KEYS]
+        if given[0] == "name" and any(drive):
+            name = DRIVE_KEYS[drive.index(True)]
+            raise GainError("a shipped robot's drive is known: remove the drive keys", name)
+        if any(drive) and not all(drive):
+            name = DRIVE_KEYS[drive.index(False)]
+            raise GainError(f"missing; the drive keys go together: add {name}", name)
+
+    def _has(self, name: str) -> bool:
+        """Whether key ``name`` is given (not empty, not absent)."""
+        return getattr(self, name) not in ("", None)
+
+    @property
+    def form(self) -> str:
+        """``"name"``, ``"urdf"`` or ``"assembly"``."""
+        return next(f for f, names in ROBOT_FORMS.items() if any(self._has(n) for n in names))
+
+    @property
+    def label(self) -> str:
+        """A short name of the robot: the shipped name, the URDF file, or base + arm."""
+        if self.form == "name":
+            return self.name
+        if self.form == "urdf":
+            return self.urdf
+        return f"{self.base} + {self.arm}" if self.arm else self.base
+
+    def build(self, camera: CameraIntrinsics | None = None) -> MobileManipulator:
+        """The robot this table describes, at its home (``home`` if given).
+
+        Args:
+            camera: Intrinsics; the paper's camera by default.
+
+        Raises:
+            ScenarioError: If the robot cannot be built, naming the file and the dotted field.
+        """
+        return build_robot_from(self, camera)
 
 
 @dataclass(frozen=True)

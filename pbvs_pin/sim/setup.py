@@ -8,13 +8,13 @@ visibility at the start) is checked here and reported as a ScenarioError naming 
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.catalogue import build_robot
 from pbvs_pin.control.compensation import Compensation, DynamicCompensator
 from pbvs_pin.control.ibvs import ClassicIbvs
 from pbvs_pin.control.kinematic import PassivityController, ServoGains
@@ -26,7 +26,6 @@ from pbvs_pin.control.secondary import (
 )
 from pbvs_pin.dynamics import VelocityLoop
 from pbvs_pin.estimation import AlphaBetaFilter
-from pbvs_pin.exceptions import PbvsError
 from pbvs_pin.features import TwoSphereFeatures
 from pbvs_pin.manipulability import max_manipulability_posture
 from pbvs_pin.plant import Plant
@@ -89,20 +88,46 @@ class Setup:
     posture_target: np.ndarray
     xi_d: np.ndarray
     estimator: AlphaBetaFilter
+    robot_given: bool = False
+
+    def robot_meta(self) -> dict[str, Any]:
+        """The robot in a log's meta: ``robot`` (a label) and ``robot_table``.
+
+        ``robot_table`` is the ``[robot]`` table the robot was built from (None for a robot
+        given from Python, whose label is its source).
+        """
+        if self.robot_given:
+            return {"robot": self.robot.source, "robot_table": None}
+        return {"robot": self.scenario.robot.label, "robot_table": self.scenario.robot.to_toml()}
 
 
-def build(scenario: Scenario) -> Setup:
+def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
     """Build the true robot, the controller's model and every block of the loop.
+
+    Args:
+        scenario: A validated scenario.
+        robot: A built robot that replaces the scenario's whole ``[robot]`` table (its
+            ``home_arm`` is the start; ``initial_arm`` and ``home`` are not applied). The
+            plant and the controller's model derive from it as from the table's robot. The
+            camera is the scenario's ``[camera]``: a robot with other intrinsics is used
+            through a shallow copy that carries them; the robot itself is not modified.
 
     Raises:
         ScenarioError: If a value is invalid for this robot, or the target is not visible
             at the start.
     """
     camera = scenario.camera.intrinsics()
-    robot = _robot(scenario, camera)
+    robot_given = robot is not None
+    if robot is None:
+        robot = scenario.robot.build(camera)
+        q0 = _start(scenario, robot)
+    else:
+        if robot.camera != camera:
+            robot = copy.copy(robot)
+            robot.camera = camera
+        q0 = robot.home()
     errors = scenario.model_error
     model = robot.with_model_error(errors.kinematic_scale, errors.mass_scale)
-    q0 = _start(scenario, robot)
     plant = Plant(robot, VelocityLoop.from_time_constants(robot), q0, scenario.simulation.plant_dt)
     target_spec = scenario.target
     features = TwoSphereFeatures(target_spec.diameter)
@@ -132,16 +157,8 @@ def build(scenario: Scenario) -> Setup:
         scenario, robot, model, plant, target, features, sensor, controller, compensator,
         objectives, list(scenario.obstacles), laser, posture_target,
         np.asarray(target_spec.xi_d, dtype=float),
-        scenario.estimator.filter(),
+        scenario.estimator.filter(), robot_given,
     )  # fmt: skip
-
-
-def _robot(scenario: Scenario, camera: CameraIntrinsics) -> MobileManipulator:
-    """The true robot, or a ScenarioError naming ``robot.name`` (unknown name, bad URDF)."""
-    try:
-        return build_robot(scenario.robot.name, camera)
-    except PbvsError as err:
-        raise scenario.error("robot.name", str(err)) from err
 
 
 def _start(scenario: Scenario, robot: MobileManipulator) -> np.ndarray:

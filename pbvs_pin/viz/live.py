@@ -154,13 +154,12 @@ class LiveView:
 
         Raises:
             GainError: If ``speed`` is not a positive number.
-            ScenarioError: If the scenario cannot be loaded.
-            RobotNotFound: If its robot is unknown.
+            ScenarioError: If the scenario cannot be loaded or its robot cannot be built.
             ViewerUnavailable: If the meshcat server cannot be started or stops answering
                 while the scene is drawn.
         """
         self.scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-        self.robot = build_robot(self.scenario.robot.name, self.scenario.camera.intrinsics())
+        self.robot = self.scenario.robot.build(self.scenario.camera.intrinsics())
         target = self.scenario.target
         facts = RunFacts(
             target_diameter=target.diameter,
@@ -356,7 +355,7 @@ def _open_browser(url: str) -> bool:
         return False
 
 
-def view_robot(name: str, html: str | Path | None = None) -> Path | None:
+def view_robot(name: str | MobileManipulator, html: str | Path | None = None) -> Path | None:
     """Show a robot at its home configuration with its camera optical frame and frustum.
 
     With ``html``, the scene is written to a standalone HTML file (no server involved) and
@@ -365,8 +364,8 @@ def view_robot(name: str, html: str | Path | None = None) -> Path | None:
     served until Ctrl-C.
 
     Args:
-        name: A shipped robot name (e.g. ``pioneer_cyton``, ``pioneer_ur5``, ``tiago``) or a
-            URDF path with a ``camera_optical_frame``.
+        name: A shipped robot name (e.g. ``pioneer_cyton``, ``pioneer_ur5``, ``tiago``), a
+            URDF path with a ``camera_optical_frame``, or a built robot.
         html: Output file; ``None`` serves instead.
 
     Returns:
@@ -376,7 +375,7 @@ def view_robot(name: str, html: str | Path | None = None) -> Path | None:
         RobotNotFound: If ``name`` is not a robot.
         ViewerUnavailable: If the meshcat server cannot be started (serving only).
     """
-    robot = build_robot(name)
+    robot = name if isinstance(name, MobileManipulator) else build_robot(name)
     q = robot.home()
     if html is not None:
         vis = offline_visualizer()
@@ -386,7 +385,7 @@ def view_robot(name: str, html: str | Path | None = None) -> Path | None:
         path.write_text(vis.static_html(), encoding="utf-8")
         print(f"robot view written to {path}")
         return path
-    advice = VIEW_ADVICE.format(name=name)
+    advice = VIEW_ADVICE.format(name=name if isinstance(name, str) else robot.source)
     vis = server.start_visualizer(timeout=SEND_TIMEOUT, advice=advice)
     try:
         try:

@@ -19,6 +19,7 @@ from pbvs_pin.catalogue import build_robot
 from pbvs_pin.exceptions import PointBehindCamera
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog
+from pbvs_pin.sim.sections import RobotSection
 from pbvs_pin.sim.targets import centres_from
 from pbvs_pin.viz.animation import write_replay_html
 from pbvs_pin.viz.recorder import offline_visualizer
@@ -29,15 +30,18 @@ REPLAY_RATE = 10.0
 
 
 def log_robot(log: RunLog) -> MobileManipulator:
-    """The robot a log was recorded with (name and camera intrinsics from its meta).
+    """The robot a log was recorded with (its ``[robot]`` table, or name, and intrinsics).
 
     Raises:
         RobotNotFound: If the logged robot name is no longer known.
+        ScenarioError: If the logged ``[robot]`` table no longer builds.
     """
     camera = log.meta["camera"]
-    return build_robot(
-        log.meta["robot"], CameraIntrinsics(camera["focal_px"], camera["width"], camera["height"])
-    )
+    intrinsics = CameraIntrinsics(camera["focal_px"], camera["width"], camera["height"])
+    table = log.meta.get("robot_table")
+    if table:
+        return RobotSection.from_toml(table, log.meta.get("source", "")).build(intrinsics)
+    return build_robot(log.meta["robot"], intrinsics)
 
 
 def log_facts(log: RunLog) -> RunFacts:

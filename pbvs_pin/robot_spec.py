@@ -1,0 +1,176 @@
+"""A robot described by a ``[robot]`` table: its three forms, their rules, and building it.
+
+A ``[robot]`` table (:class:`pbvs_pin.sim.sections.RobotSection`, in a scenario or in a robot
+file of its own) gives exactly one form:
+
+- ``name``: a shipped robot (:data:`pbvs_pin.catalogue.ROBOT_NAMES`);
+- ``urdf`` + ``camera_frame``: one URDF holding platform, arm and camera optical frame
+  (:meth:`MobileManipulator.from_urdf`);
+- ``base``, ``arm``, ``mount``, ``camera_link``, ``camera_pose``: an arm mounted on a
+  platform (:meth:`MobileManipulator.assemble`); ``arm`` and ``mount`` are absent when the
+  base carries its arm.
+
+``home`` (the arm's home posture) applies to every form. The drive parameters
+``wheel_radius``, ``track`` and ``wheel_speed_limit`` (all three or none, URDF and assembly
+forms) replace the drive axle found in the platform's URDF by a
+:class:`~pbvs_pin.base.DifferentialDrive` with those values, whose planar root joint then sits
+at the platform's root link (:func:`drive_of`). Every error names the file and the dotted
+field at fault, and what to add.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pbvs_pin.base import DifferentialDrive
+from pbvs_pin.camera import CameraIntrinsics
+from pbvs_pin.catalogue import build_robot
+from pbvs_pin.exceptions import (
+    DriveAxleNotFound,
+    FrameNotFound,
+    NoMovableJoint,
+    PbvsError,
+    RobotNotFound,
+    ScenarioError,
+    UrdfError,
+)
+from pbvs_pin.robot import MobileManipulator
+
+if TYPE_CHECKING:
+    from pbvs_pin.sim.sections import RobotSection
+
+ROBOT_FORMS: dict[str, tuple[str, ...]] = {
+    "name": ("name",),
+    "urdf": ("urdf", "camera_frame"),
+    "assembly": ("base", "arm", "mount", "camera_link", "camera_pose"),
+}
+"""The ``[robot]`` forms and their keys."""
+
+DRIVE_KEYS = ("wheel_radius", "track", "wheel_speed_limit")
+"""The explicit differential-drive parameters (all or none)."""
+
+REQUIRED: dict[str, tuple[tuple[str, tuple[str, ...]], ...]] = {
+    "name": (),
+    "urdf": (("urdf", ()), ("camera_frame", ())),
+    "assembly": (("base", ()), ("arm", ("mount",)), ("mount", ("arm",)), ("camera_link", ()),
+                 ("camera_pose", ())),
+}  # fmt: skip
+"""Per form: each required key, when the keys listed with it are all given."""
+
+HINTS = {
+    "urdf": '"path/to/robot.urdf"',
+    "camera_frame": '"camera_optical_frame" (the URDF\'s optical frame: z forward, x right, '
+    "y down)",
+    "base": '"pioneer3at" (a shipped URDF name, a URDF path or an example-robot-data name)',
+    "arm": '"ur5" (the arm that mount places)',
+    "mount": "[x, y, z, roll, pitch, yaw] (the arm's root link in the platform's root link)",
+    "camera_link": '"tool0" (the link the camera is fixed to)',
+    "camera_pose": "[x, y, z, roll, pitch, yaw] (the optical frame in camera_link; all zeros "
+    "if camera_link is the optical frame)",
+}
+"""What to write for each required key, in the error that says it is missing."""
+
+
+def is_path(name: str, value: str) -> bool:
+    """Whether a ``[robot]`` value is a file path: urdf; name, base or arm ending in .urdf."""
+    return bool(value) and (
+        name == "urdf" or (name in ("name", "base", "arm") and value.lower().endswith(".urdf"))
+    )
+
+
+def drive_of(spec: RobotSection) -> DifferentialDrive | str:
+    """The drive: explicit from the drive keys, else ``"differential"`` (found in the URDF).
+
+    This is the one place where the drive keys reach the robot builders, as the ``base``
+    adapter of :meth:`MobileManipulator.from_urdf` and :meth:`MobileManipulator.assemble`.
+    """
+    if spec.wheel_radius is None:
+        return "differential"
+    return DifferentialDrive(spec.wheel_radius, spec.track, spec.wheel_speed_limit)
+
+
+def build_robot_from(
+    spec: RobotSection, camera: CameraIntrinsics | None = None
+) -> MobileManipulator:
+    """Build the robot a ``[robot]`` table describes, with its ``home`` if given.
+
+    Args:
+        spec: The validated table.
+        camera: Intrinsics; the paper's camera by default.
+
+    Raises:
+        ScenarioError: Naming ``spec.source`` and the dotted field: an unknown name, a
+            missing or malformed URDF, a missing frame, a platform whose drive cannot be
+            found (saying which keys to add), a ``home`` of the wrong length or off limits.
+    """
+    try:
+        robot = _build(spec, camera)
+    except PbvsError as err:
+        field = _field_at_fault(spec, err)
+        problem = str(err)
+        if isinstance(err, DriveAxleNotFound):
+            problem += "; or give the drive: add wheel_radius, track and wheel_speed_limit"
+        raise ScenarioError(spec.source, f"robot.{field}", problem) from err
+    if spec.home is not None:
+        robot.home_arm = _home(spec, robot)
+    return robot
+
+
+def _build(spec: RobotSection, camera: CameraIntrinsics | None) -> MobileManipulator:
+    """The robot of the table's form (package errors pass through)."""
+    if spec.form == "name":
+        return build_robot(spec.name, camera)
+    if spec.form == "urdf":
+        return MobileManipulator.from_urdf(spec.urdf, spec.camera_frame, drive_of(spec), camera)
+    return MobileManipulator.assemble(
+        spec.base,
+        spec.arm or None,
+        spec.mount or (0.0,) * 6,
+        spec.camera_link,
+        spec.camera_pose,
+        camera=camera,
+        base_kind=drive_of(spec),
+    )
+
+
+def _field_at_fault(spec: RobotSection, err: PbvsError) -> str:
+    """The key of ``spec`` that an error while building the robot comes from."""
+    form = spec.form
+    if form == "name":
+        return "name"
+    if isinstance(err, DriveAxleNotFound):
+        return "urdf" if form == "urdf" else "base"
+    if isinstance(err, FrameNotFound | NoMovableJoint):
+        return "camera_frame" if form == "urdf" else "camera_link"
+    if form == "urdf":
+        return "urdf"
+    arm = bool(spec.arm) and (
+        (isinstance(err, RobotNotFound) and err.name == spec.arm)
+        or (isinstance(err, UrdfError) and err.source == spec.arm)
+    )
+    return "arm" if arm else "base"
+
+
+def _home(spec: RobotSection, robot: MobileManipulator) -> np.ndarray:
+    """The ``home`` key as an arm posture, checked for length and joint limits."""
+    home = np.asarray(spec.home, dtype=float)
+    if home.shape != (robot.n_arm,):
+        raise ScenarioError(
+            spec.source,
+            "robot.home",
+            f"expected {robot.n_arm} values for this robot ({', '.join(robot.arm_joint_names)}),"
+            f" got {home.size}",
+        )
+    lower, upper = robot.arm_position_limits()
+    outside = [
+        name
+        for name, value, low, high in zip(robot.arm_joint_names, home, lower, upper, strict=True)
+        if not low <= value <= high
+    ]
+    if outside:
+        raise ScenarioError(
+            spec.source, "robot.home", f"outside the joint limits of {', '.join(outside)}"
+        )
+    return home
