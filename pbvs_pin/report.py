@@ -56,12 +56,12 @@ def _bounded(s: dict[str, Any]) -> bool:
 CLAIMS = {
     "experiment1": Claim(
         "errors ultimately bounded, final max |error| < 8 px",
-        "max |e| over the last 5 s < 8 px; target never lost",
+        "max abs(e) over the last 5 s < 8 px; target never lost",
         lambda s: _never_lost(s) and s["max_abs_error_final_window_px"] < 8.0,
     ),
     "experiment2": Claim(
         "errors bounded while avoiding the obstacle; arm returns to max manipulability",
-        "max |e| after 2 s < half the image height; min clearance > 0; arm within 0.1 rad of "
+        "max abs(e) after 2 s < half the image height; min clearance > 0; arm within 0.1 rad of "
         "theta_d over the last 5 s; last 5 s < 8 px; target never lost",
         lambda s: _never_lost(s)
         and _bounded(s)
@@ -70,13 +70,13 @@ CLAIMS = {
     ),
     "experiment3": Claim(
         "errors bounded with a 20% kinematic model error (degraded but acceptable)",
-        "max |e| after 2 s < half the image height; min clearance > 0; last 5 s < 12 px "
+        "max abs(e) after 2 s < half the image height; min clearance > 0; last 5 s < 12 px "
         "(1.5 times Exp. 1's 8 px); target never lost",
         lambda s: _never_lost(s) and _bounded(s) and s["max_abs_error_final_window_px"] < 12.0,
     ),
     "experiment4": Claim(
         "errors converge to zero (perfect knowledge)",
-        "max |e| over the last 5 s < 0.5 px; target never lost",
+        "max abs(e) over the last 5 s < 0.5 px; target never lost",
         lambda s: _never_lost(s) and s["max_abs_error_final_window_px"] < 0.5,
     ),
 }
@@ -158,7 +158,9 @@ def runs_table(summaries: list[dict[str, Any]]) -> str:
 def claims_table() -> str:
     """Each experiment's claim beside the rule that decides it."""
     lines = ["| experiment | paper's claim | rule for 'met' |", "|---|---|---|"]
-    lines += [f"| {name} | {c.text} | {c.rule} |" for name, c in CLAIMS.items()]
+    lines += [
+        f"| {name} | {c.text.replace('|', '&#124;')} | {c.rule} |" for name, c in CLAIMS.items()
+    ]
     return "\n".join(lines)
 
 
