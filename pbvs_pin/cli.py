@@ -98,7 +98,7 @@ def _reproduce(args: argparse.Namespace) -> None:
     """Run the paper's four experiments and write the report."""
     from pbvs_pin.experiments import reproduce
 
-    report = reproduce(Path(args.out))
+    report = reproduce(Path(args.out), compensation=not args.no_compensation)
     print(f"report written to {report}")
 
 
@@ -173,6 +173,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(handler=_run)
     reproduce = commands.add_parser("reproduce", help="run the paper's four experiments")
     reproduce.add_argument("--out", default="results", help="output folder")
+    reproduce.add_argument(
+        "--no-compensation",
+        action="store_true",
+        help="skip the comparison of the compensation modes (8 runs)",
+    )
     reproduce.set_defaults(handler=_reproduce)
     view = commands.add_parser("view", help="show a robot, its camera frame and frustum")
     view.add_argument("robot", help=ROBOT_HELP)

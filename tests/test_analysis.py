@@ -31,7 +31,9 @@ def synthetic_log(gamma_spike: float = 5.0, gamma_level: float = 0.004, nan_at=(
     """A log with known signals: e(t) = e0 exp(-2t) px, gamma = a spike then a constant level.
 
     J is random (seeded) at every sample; lambda_min is filled from it (NaN at ``nan_at``).
-    nu = n0 exp(-t), passivity_input = -nu, storage from its closed form.
+    True-state set: nu = n0 exp(-t), passivity_input = -nu, storage from its closed form;
+    v - u = 0.1 nu. The controller's set differs from it in every channel (stale and scaled),
+    so any mixture of the two sets gives other integrals than the true set alone.
     """
     rng = np.random.default_rng(7)
     t = np.linspace(0.0, 4.0, 201)
@@ -53,19 +55,24 @@ def synthetic_log(gamma_spike: float = 5.0, gamma_level: float = 0.004, nan_at=(
         "xi_d": np.tile(XI_D, (t.size, 1)),
         "lambda_min": lambda_min,
         "gamma": gamma,
-        "nu": nu,
-        "passivity_input": -nu,
-        "storage": storage,
+        "nu_true": nu,
+        "passivity_input_true": -nu,
+        "storage_true": storage,
+        "nu": 1.3 * np.roll(nu, 3, axis=0),
+        "passivity_input": -0.5 * nu,
+        "storage": 1.1 * storage,
+        "u": np.zeros_like(nu),
+        "v": 0.1 * nu,
     }
     meta = {"scenario": "synthetic", "robot": "none", "feature_scale": SCALE, "k": K.tolist()}
     return RunLog(channels, meta), jacobians, e0
 
 
-def v1_by_quadrature(error_units: np.ndarray) -> float:
+def v1_by_quadrature(error_units: np.ndarray, gains: np.ndarray = K) -> float:
     """Eq. (7) integrated numerically along the straight path from 0 to e."""
     return sum(
         quad(lambda eta, k=k: k * eta / (1.0 + abs(eta)), 0.0, e)[0]
-        for k, e in zip(K, error_units, strict=True)
+        for k, e in zip(gains, error_units, strict=True)
     )
 
 
@@ -131,7 +138,35 @@ def test_figures_match_an_independent_recomputation():
     assert p14["beta_1"] == 0.0
     assert p14["rhs_beta"] == pytest.approx(v1_0, rel=1e-8)
     assert p14["holds"] is bool(nu_sq <= v1_0)
+    # (27): int ||nu||^2 <= V1(0) + int nu^T (v - u), with v - u = 0.1 nu
+    p27 = result["passivity_27"]
+    assert p27["integral_nu_velocity_error"] == pytest.approx(0.1 * nu_sq, rel=1e-3)
+    assert p27["rhs"] == pytest.approx(v1_0 + 0.1 * nu_sq, rel=1e-3)
+    assert p27["holds"] is bool(nu_sq <= v1_0 + 0.1 * nu_sq)
+    assert result["passivity_signals"].startswith("true state")
     json.dumps(result, allow_nan=False)
+
+
+def test_passivity_uses_one_signal_set_never_a_mixture():
+    """(9) from the true-state channels only; the controller's channels only as a diagnostic."""
+    log, _, _ = synthetic_log()
+    result = analyze_log(log)
+    t = log["t"]
+
+    def supply(nu_name, input_name):
+        return np.trapezoid(np.sum(log[nu_name] * log[input_name], axis=1), t)
+
+    true_supply = supply("nu_true", "passivity_input_true")
+    assert result["passivity_9"]["lhs_integral_nu_input"] == pytest.approx(true_supply)
+    assert result["passivity_9"]["rhs_minus_V1_0"] == pytest.approx(-log["storage_true"][0])
+    for mixed in (supply("nu", "passivity_input_true"), supply("nu_true", "passivity_input")):
+        assert abs(mixed - true_supply) > 1e-3 * abs(true_supply)
+    diagnostic = result["passivity_controller_signals"]
+    assert diagnostic["signals"].startswith("diagnostic")
+    assert diagnostic["passivity_9"]["lhs_integral_nu_input"] == pytest.approx(
+        supply("nu", "passivity_input")
+    )
+    assert diagnostic["passivity_9"]["rhs_minus_V1_0"] == pytest.approx(-log["storage"][0])
 
 
 def test_condition_31_fails_when_gamma_is_large():
@@ -228,13 +263,40 @@ def test_passivity_inequality_9_holds_on_a_run():
     log = simulate(scenario)
     result = analyze_log(log)
     p9 = result["passivity_9"]
-    supply = np.trapezoid(np.sum(log["nu"] * log["passivity_input"], axis=1), log["t"])
+    supply = np.trapezoid(np.sum(log["nu_true"] * log["passivity_input_true"], axis=1), log["t"])
     assert p9["lhs_integral_nu_input"] == pytest.approx(supply)
-    assert p9["rhs_minus_V1_0"] == pytest.approx(-log["storage"][0])
-    assert supply >= -log["storage"][0]
+    assert p9["rhs_minus_V1_0"] == pytest.approx(-log["storage_true"][0])
+    assert supply >= -log["storage_true"][0]
     assert p9["holds"] is True
     # the supply matches the storage change to within the sampling effects
-    assert abs(p9["identity_residual"]) < 0.1 * log["storage"][0]
+    assert abs(p9["identity_residual"]) < 0.1 * log["storage_true"][0]
+
+
+def test_true_state_channels_match_an_independent_recomputation(weave_log):
+    """nu_true = J^T K_c e with J by finite differences of the true features; V1 by quadrature."""
+    from pbvs_pin.sim.setup import build
+
+    log = weave_log
+    setup = build(load_scenario("experiment1"))
+    robot, features = setup.robot, setup.features
+    scale = log.meta["feature_scale"]
+    k = np.asarray(log.meta["k"])
+    i = len(log["t"]) // 2
+    q = log["q"][i]
+    half = np.array([0.0, 0.0, log.meta["target_separation"] / 2])
+    points = [log["target"][i] + half, log["target"][i] - half]
+    error = (log["xi_true"][i] - log["xi_d"][i]) / scale
+    assert log["storage_true"][i] == pytest.approx(v1_by_quadrature(error, k), rel=1e-6)
+    jac = np.empty((3, robot.n))
+    h = 1e-6
+    for j in range(robot.n):
+        dv = np.zeros(robot.n)
+        dv[j] = 1.0
+        plus = features.jacobians(robot, robot.integrate(q, dv, h), *points)[0]
+        minus = features.jacobians(robot, robot.integrate(q, -dv, h), *points)[0]
+        jac[:, j] = (plus - minus) / (2 * h) / scale
+    kc_e = k * error / (1 + np.abs(error))
+    np.testing.assert_allclose(log["nu_true"][i], jac.T @ kc_e, rtol=1e-4, atol=1e-8)
 
 
 def test_analyze_run_writes_report_and_plots(weave_log, tmp_path, capsys):

@@ -4,6 +4,8 @@ Each experiment runs once per module (about 40 s in all). Every figure asserted 
 computed from the log in this file; :func:`pbvs_pin.sim.metrics.summarize` is checked against
 the same computation, and the report is built from the summaries of these runs (running
 :func:`pbvs_pin.experiments.reproduce` would repeat the four runs with figures and replays).
+The README's results table is checked against these fresh runs, and rows are checked to flag
+a lost target, a collision, a joint past its limit and v_ref at its limit.
 
 Stated bounds (DESIGN.md §4, the paper's §5):
 
@@ -25,9 +27,10 @@ import pytest
 from simhelpers import IMAGE_HEIGHT_PX, TRANSIENT_S, feature_error
 
 from pbvs_pin.experiments import PAPER_CLAIMS, _report
+from pbvs_pin.report import claim_met, readme_block, readme_results, run_row
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.loop import simulate
-from pbvs_pin.sim.metrics import FINAL_WINDOW, summarize
+from pbvs_pin.sim.metrics import FINAL_WINDOW, oscillation_rms, summarize
 from pbvs_pin.sim.scenario import load_scenario
 
 HALF_IMAGE_HEIGHT_PX = IMAGE_HEIGHT_PX / 2
@@ -153,19 +156,86 @@ def test_report_states_each_claim_and_measured_figures(runs):
     reference = [runs[name][1] for name in PAPER_CLAIMS]
     others = [dict(s, robot="pioneer_ur5") for s in reference[:1]]
     classic = [dict(s, law="ibvs") for s in reference]
-    report = _report(reference, others, classic)
+    report = _report(reference, others, classic, reference)
     for summary in reference:
         name = summary["scenario"]
-        rows = [line for line in report.splitlines() if line.startswith(f"| {name} | ")]
+        claim_rows = [line for line in report.splitlines() if line.startswith(f"| {name} | ")]
+        assert PAPER_CLAIMS[name].replace("|", "&#124;") in claim_rows[0]
+        assert "target never lost" in claim_rows[0]
+        rows = [r for r in report.splitlines() if r.startswith(f"| pioneer_cyton | {name} |")]
         assert rows, name
-        assert PAPER_CLAIMS[name] in rows[0]
         assert f"{summary['max_abs_error_final_window_px']:.2f}" in rows[0]
         assert f"{summary['max_abs_error_after_transient_px']:.1f}" in rows[0]
         assert f"{summary['posture_error_final_window_rad']:.3f}" in rows[0]
+        assert f"{summary['v_ref_at_limit_fraction']:.3f}" in rows[0]
         clearance = summary["min_clearance_m"]
         if clearance is not None:
             assert f"{clearance:.3f}" in rows[0]
     assert "## Other robots" in report and "| pioneer_ur5 | experiment1 |" in report
     assert "## Classic IBVS baseline" in report
-    assert report.count("| IBVS |") == len(PAPER_CLAIMS)
+    assert report.count("| ibvs |") == len(PAPER_CLAIMS)
+    assert "## Dynamic compensation" in report
     assert "## Other robots" not in _report(reference, [], [])
+
+
+def test_report_row_does_not_hide_a_lost_target(runs):
+    """A run that loses the target is flagged in its row and cannot meet its claim."""
+    log, summary = runs["experiment1"]
+    assert claim_met(summary) is True
+    lost = RunLog(dict(log.channels), dict(log.meta))
+    flags = np.zeros_like(log["target_lost"], dtype=bool)
+    flags[800:1100] = True
+    lost.channels["target_lost"] = flags
+    lost_summary = summarize(lost)
+    row = run_row(lost_summary)
+    first = log["t"][800]
+    assert f"lost 300 from {first:.2f} s" in row
+    assert "NOT met" in row and claim_met(lost_summary) is False
+
+
+def test_rows_flag_collisions_joint_limits_and_v_ref_at_its_limit(runs):
+    log, _ = runs["experiment2"]
+    bad = RunLog(dict(log.channels), dict(log.meta))
+    clearance = log["clearance"].copy()
+    clearance[500] = -0.02
+    arm = log["arm"].copy()
+    upper = log.meta["arm_position_limits"][1][1]
+    arm[600, 1] = upper + 0.3
+    v_ref = log["v_ref"].copy()
+    limits = np.asarray(log.meta["velocity_limits"])
+    v_ref[:100, 0] = -limits[0]
+    bad.channels.update(clearance=clearance, arm=arm, v_ref=v_ref)
+    summary = summarize(bad)
+    row = run_row(summary)
+    assert "collision -0.020 m" in row and "joints +0.3" in row
+    at_limit = np.mean(np.any(np.abs(v_ref) >= limits * (1 - 1e-6), axis=1))
+    assert at_limit >= 100 / len(v_ref)
+    assert summary["v_ref_at_limit_fraction"] == pytest.approx(at_limit)
+    assert claim_met(summary) is False
+
+
+def test_oscillation_measures_the_part_above_half_a_hertz():
+    t = np.arange(0.0, 30.0, 0.02)
+    slow = np.column_stack([20 * np.exp(-t / 5), 0.2 * t, np.zeros_like(t)])
+    assert oscillation_rms(t, slow)[0] < 0.05
+    fast = slow.copy()
+    fast[(t >= 10) & (t < 20), 2] += 4.0 * np.sin(2 * np.pi * 3.0 * t[(t >= 10) & (t < 20)])
+    rms, start = oscillation_rms(t, fast)
+    assert rms == pytest.approx(4.0 / np.sqrt(2), rel=0.05)
+    assert 9.5 <= start <= 15.5
+
+
+def test_readme_results_match_fresh_runs(runs):
+    """The README's results table is the one generated from these fresh runs' summaries."""
+    from conftest import REPO_ROOT
+
+    reference = [runs[name][1] for name in PAPER_CLAIMS]
+    readme = readme_block((REPO_ROOT / "README.md").read_text())
+    assert readme == readme_results(reference), (
+        "README results differ from fresh runs: regenerate with pbvs-pin reproduce --out "
+        "results && python -m pbvs_pin.report README.md results"
+    )
+    report = _report(reference, [], [])
+    numbers = [cell for line in readme.splitlines()[3:-1] for cell in line.split(" | ")[3:7]]
+    for number in numbers:
+        assert number.strip() in report, number

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from pbvs_pin.analysis.passivity import passivity_inequalities
+from pbvs_pin.analysis.passivity import SIGNAL_SETS, passivity_of_log
 from pbvs_pin.analysis.robustness import bounds_after_t1, choose_t1
 from pbvs_pin.analysis.signals import finite_max, gain_times_error
 from pbvs_pin.exceptions import GainError, NonFiniteValue, PbvsError
@@ -21,11 +21,12 @@ REQUIRED_CHANNELS = (
     "t",
     "xi_true",
     "xi_d",
+    "u",
+    "v",
     "lambda_min",
     "gamma",
-    "nu",
-    "passivity_input",
-    "storage",
+    *SIGNAL_SETS["true_state"],
+    *SIGNAL_SETS["controller"],
 )
 """Log channels the analysis reads."""
 
@@ -45,8 +46,10 @@ def analyze_log(
     Returns:
         A JSON-serialisable dict (non-finite numbers become None): ``lambda``, ``lambda_prime``,
         ``k_min``, ``t1_s``, ``gamma_inf``, ``condition_31``, ``bound_38``, ``bound_39``,
-        ``l2_gain_42``, ``passivity_9`` and ``passivity_14``; error figures in controller units
-        and in pixels (``*_px``).
+        ``l2_gain_42``; ``passivity_9``, ``passivity_14`` and ``passivity_27`` on the true-state
+        signals (named in ``passivity_signals``); ``passivity_controller_signals``: the same
+        three on the controller's own signals, a diagnostic (:mod:`.passivity`). Error figures
+        in controller units and in pixels (``*_px``).
 
     Raises:
         GainError: If ``epsilon`` is not in (0, 1) or ``t1`` is outside the run.
@@ -128,8 +131,51 @@ def analyze_log(
                 t, start, error, error_norm, kc_error_norm, gamma_norm, k, scale, lambda_prime
             )
         )
-    result.update(passivity_inequalities(log, t))
+    result["condition_31"]["explanation"] = _explain_31(result, t, gamma_norm)
+    result["passivity_signals"] = PASSIVITY_SIGNALS
+    result.update(passivity_of_log(log.channels, t, "true_state"))
+    result["passivity_controller_signals"] = {
+        "signals": CONTROLLER_SIGNALS,
+        **passivity_of_log(log.channels, t, "controller"),
+    }
     return _jsonable(result)
+
+
+PASSIVITY_SIGNALS = (
+    "true state: nu, V1 and v + J# J_o pdot from the true configuration, target position and "
+    "velocity, and the true robot's J and J_o"
+)
+"""How (9), (13)/(14) and (27) are evaluated (:mod:`.passivity`)."""
+
+CONTROLLER_SIGNALS = (
+    "diagnostic: the controller's nu, V1 and J from its last (stale, noisy, possibly wrong-model) "
+    "measurement, with the true v and pdot"
+)
+"""How the diagnostic version of the passivity inequalities is evaluated."""
+
+
+def _explain_31(result: dict[str, Any], t: np.ndarray, gamma_norm: np.ndarray) -> str:
+    """Why (31) holds or fails, naming t1 and where ``||gamma||_inf`` and ``lambda`` occur."""
+    start = result["t1_s"]
+    lam_part = (
+        f"lambda = {result['lambda']:.4g} at t = {result['lambda_at_s']:.2f} s, so lambda' k_min "
+        f"= {result['lambda_prime_k_min']:.4g}"
+    )
+    if start is None:
+        return f"no t1 ({result['condition_31']['reason']}); {lam_part}"
+    after = np.flatnonzero((t >= start) & np.isfinite(gamma_norm))
+    peak = float(t[after[np.argmax(gamma_norm[after])]]) if after.size else start
+    verdict = "holds" if result["condition_31"]["holds"] else "fails"
+    above = np.flatnonzero(gamma_norm >= result["lambda_prime_k_min"])
+    last = (
+        f"; ||gamma|| >= lambda' k_min last at t = {t[above[-1]]:.2f} s of {t[-1]:.2f} s"
+        if above.size
+        else ""
+    )
+    return (
+        f"(31) {verdict} with t1 = {start:.2f} s: sup ||gamma|| over [t1, T] = "
+        f"{result['gamma_inf']:.4g}, reached at t = {peak:.2f} s; {lam_part}{last}"
+    )
 
 
 def _jsonable(value: Any) -> Any:

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from pbvs_pin.analysis.passivity import SIGNAL_SETS
 from pbvs_pin.analysis.signals import gain_times_error, suffix_max
 from pbvs_pin.sim.log import RunLog
 
@@ -23,7 +24,8 @@ def plot_analysis(log: RunLog, result: dict[str, Any], folder: Path) -> list[Pat
     - ``gamma.png``: ``||gamma(t)||`` with ``||gamma||_inf`` and ``lambda' k_min`` (31); and
       ``||K_c e||`` against ``||gamma||_inf / lambda'`` (38).
     - ``storage.png``: ``V1(t)``, the supply ``int nu^T (v + J# J_o pdot)`` against ``-V1(0)``
-      (9), and ``int ||nu||^2`` against ``beta`` (14).
+      (9), and ``int ||nu||^2`` against ``beta`` (14), on the true-state signals
+      (:data:`pbvs_pin.analysis.passivity.SIGNAL_SETS`).
     """
     import matplotlib
 
@@ -104,13 +106,14 @@ def plot_analysis(log: RunLog, result: dict[str, Any], folder: Path) -> list[Pat
     fig.savefig(paths[-1], dpi=110)
     plt.close(fig)
 
-    nu = np.asarray(log["nu"], dtype=float)
-    supply = np.nan_to_num(np.sum(nu * np.asarray(log["passivity_input"], dtype=float), axis=1))
+    nu_name, input_name, storage_name = SIGNAL_SETS["true_state"]
+    nu = np.asarray(log[nu_name], dtype=float)
+    supply = np.nan_to_num(np.sum(nu * np.asarray(log[input_name], dtype=float), axis=1))
     nu_sq = np.nan_to_num(np.sum(nu * nu, axis=1))
     cumulative = np.concatenate([[0.0], np.cumsum(0.5 * (supply[1:] + supply[:-1]) * np.diff(t))])
     cumulative_sq = np.concatenate([[0.0], np.cumsum(0.5 * (nu_sq[1:] + nu_sq[:-1]) * np.diff(t))])
     fig, ax = plt.subplots(figsize=(7, 3.6))
-    ax.plot(t, log["storage"], label="V1(t) (7)", linewidth=1.2)
+    ax.plot(t, log[storage_name], label="V1(t) (7)", linewidth=1.2)
     ax.plot(t, cumulative, label="int_0^t nu^T (v + J# J_o pdot) (9)", linewidth=1.2)
     ax.axhline(
         -result["passivity_9"]["V1_0"],
@@ -127,7 +130,10 @@ def plot_analysis(log: RunLog, result: dict[str, Any], folder: Path) -> list[Pat
     )
     ax.set_xlabel("time [s]")
     ax.set_ylabel("controller units")
-    ax.set_title("Storage and passivity inequalities")
+    ax.set_title(
+        f"Storage and passivity inequalities (true state): {result['scenario']}, "
+        f"{result['robot']}"
+    )
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="best")
     fig.tight_layout()

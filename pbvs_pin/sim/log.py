@@ -3,6 +3,13 @@
 Every channel is an array whose first axis is time (the log rate). Features and errors are in
 pixels; the passivity quantities (``storage``, ``nu``, ``gamma``, ``lambda_min``) are in the
 controller's feature units (``meta["feature_scale"]`` pixels each), as in the paper's proofs.
+
+Two sets of passivity signals are logged. The controller's own (``nu``, ``storage``,
+``passivity_input``) come from its last camera measurement: stale between frames, noisy, and
+with the controller's (possibly wrong) kinematic model. The true-state set (``nu_true``,
+``storage_true``, ``passivity_input_true``) is derived after the run from the true
+configuration, the true target and the true robot's ``J`` and ``J_o``: one consistent set, in
+which the identity behind eq. (9) holds up to sampling.
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ CHANNELS = (
     "target_velocity", "target_velocity_estimate", "obstacle_distance", "obstacle_angle",
     "clearance", "manipulability", "storage", "storage_v2", "nu", "passivity_input",
     "lambda_min", "gamma", "saturated", "damped", "target_lost", "valid",
+    "nu_true", "storage_true", "passivity_input_true",
 )  # fmt: skip
 """Names of the arrays in a log."""
 
@@ -156,6 +164,7 @@ class RunRecorder:
                 recorded["target_velocity_estimate"],
             )
         )
+        derived.update(_true_passivity_terms(setup, derived, recorded["v"]))
         derived["xi_d"] = np.broadcast_to(setup.xi_d, recorded["xi"].shape).copy()
         every = {**recorded, **derived}
         channels = {name: every[name] for name in CHANNELS}
@@ -172,6 +181,11 @@ class RunRecorder:
             "posture_target": setup.posture_target.tolist(),
             "velocity_names": list(setup.robot.velocity_names),
             "velocity_limits": setup.robot.velocity_limits.tolist(),
+            "arm_position_limits": [
+                [None if not np.isfinite(x) else float(x) for x in side]
+                for side in setup.robot.arm_position_limits()
+            ],
+            "compensation": scenario.compensation.mode,
             "duration": float(scenario.duration),
             "wall_time": wall_time,
             "obstacles": [obstacle_table(o) for o in scenario.obstacles],
@@ -199,6 +213,8 @@ def _derived_in_one_pass(
         "target": np.empty((samples, 3)),
         "target_velocity": np.empty((samples, 3)),
         "clearance": np.empty(samples),
+        "jacobian_true": np.full((samples, r, model.n), np.nan),
+        "object_jacobian_true": np.full((samples, r, 3), np.nan),
     }
     arm_jacobians = []
     for i, (t, q) in enumerate(zip(times, configurations, strict=True)):
@@ -206,6 +222,9 @@ def _derived_in_one_pass(
         image, depths = robot.camera.project_world(robot.camera_pose(q), centres)
         if np.all(depths > 1e-3):
             out["xi_true"][i] = image.reshape(-1)[setup.features.rows]
+            _, out["jacobian_true"][i], out["object_jacobian_true"][i] = (
+                setup.features.jacobians(robot, q, *centres)
+            )
         base = robot.base_pose(q)
         yaw = float(np.arctan2(base.rotation[1, 0], base.rotation[0, 0]))
         out["clearance"][i] = clearance(setup.obstacles, footprint, *base.translation[:2], yaw)
@@ -251,3 +270,38 @@ def _passivity_terms(
         lambda_min[seen] = np.linalg.eigvalsh(gram)[:, 0]
     gamma = np.einsum("sij,sj->si", object_jacobian, target_velocity - estimated_velocity)
     return {"passivity_input": passivity_input, "lambda_min": lambda_min, "gamma": gamma}
+
+
+def _true_passivity_terms(
+    setup: Setup, derived: dict[str, np.ndarray], v: np.ndarray
+) -> dict[str, np.ndarray]:
+    r"""The true-state passivity set: ``nu``, ``V1`` and the input of eq. (9) from the truth.
+
+    With ``e = (xi_true - xi_d) / feature_scale`` and the true robot's ``J``, ``J_o``:
+
+    .. math::
+        \nu = J^T K_c(e)\, e \ (9),\qquad V_1 = \sum_i k_i (|e_i| - \ln(1 + |e_i|)) \ (7),
+        \qquad \text{input} = v + J^\# J_o \dot p
+
+    with the true ``v`` and ``pdot`` and the controller's weighted pseudo-inverse of the true
+    ``J``. NaN where the target is behind the camera. Pops ``jacobian_true`` and
+    ``object_jacobian_true`` from ``derived`` (they are not logged).
+
+    Args:
+        setup: The run's blocks.
+        derived: Channels of :func:`_derived_in_one_pass`.
+        v: Actuated velocities. Shape (N, n).
+    """
+    scale = setup.controller.gains.feature_scale
+    jacobian = derived.pop("jacobian_true") / scale
+    object_jacobian = derived.pop("object_jacobian_true") / scale
+    k = setup.controller.feature_gains(setup.features.size)
+    error = (derived["xi_true"] - setup.xi_d) / scale
+    magnitude = np.abs(error)
+    nu = np.einsum("sij,si->sj", jacobian, k * error / (1.0 + magnitude))
+    storage = np.sum(k * (magnitude - np.log1p(magnitude)), axis=1)
+    inputs = np.full_like(v, np.nan, dtype=float)
+    for i in np.flatnonzero(np.isfinite(jacobian).all(axis=(1, 2))):
+        pinv = setup.controller.pseudo_inverse(jacobian[i])[0]
+        inputs[i] = v[i] + pinv @ (object_jacobian[i] @ derived["target_velocity"][i])
+    return {"nu_true": nu, "storage_true": storage, "passivity_input_true": inputs}

@@ -1,10 +1,25 @@
-"""Figures of merit of a run, written to ``summary.json`` beside its log."""
+"""Figures of merit of a run, written to ``summary.json`` beside its log.
+
+Besides the error figures, every summary carries the flags a reader needs before trusting
+them (:func:`summarize`):
+
+- **target lost**: samples with ``target_lost`` set, and the first such time;
+- **joints past limits**: the largest excursion of an arm joint beyond its position limits
+  (``meta["arm_position_limits"]``) [rad or m], 0 when none;
+- **collision**: the smallest platform clearance < 0;
+- **sustained oscillation**: the part of the true feature error above
+  :data:`OSCILLATION_CUTOFF_HZ`, RMS over the worst :data:`FINAL_WINDOW`-long window after
+  the transient (:func:`oscillation_rms`);
+- **saturation**: the fraction of samples in which the controller scaled ``u`` down to the
+  velocity limits, and the fraction in which some ``v_ref`` component sits at its limit.
+"""
 
 from __future__ import annotations
 
 from typing import Any
 
 import numpy as np
+from scipy import signal
 
 from pbvs_pin.sim.log import RunLog
 
@@ -14,16 +29,26 @@ FINAL_WINDOW = 5.0
 TRANSIENT = 2.0
 """Time [s] after which errors count as 'throughout' (the initial transient excluded)."""
 
+OSCILLATION_CUTOFF_HZ = 0.5
+"""Cut-off [Hz] of the high-pass filter that isolates the oscillating part of the error."""
+
+OSCILLATION_FLAG_PX = 2.0
+"""Oscillation RMS [px] above which a run is flagged as oscillating."""
+
+AT_LIMIT = 1.0 - 1e-6
+"""A velocity counts as at its limit from this fraction of the limit on."""
+
 
 def summarize(log: RunLog) -> dict[str, Any]:
-    """Acceptance figures of one run (pixels, metres, radians, seconds).
+    """Acceptance figures and flags of one run (pixels, metres, radians, seconds).
 
     Returns:
         JSON-serialisable figures: the largest absolute feature error over the final window
-        and after the transient, the final error, the smallest platform clearance, the arm's
-        distance from the maximum-manipulability posture over the final window, whether the
-        storage function decreased after the transient, and counts of saturated, damped and
-        target-lost samples.
+        and after the transient, the final error, its RMS after the transient, the smallest
+        platform clearance, the arm's distance from the maximum-manipulability posture over
+        the final window, the storage function's increase and decrease after the transient,
+        the velocity-tracking error ``|v - u|`` (RMS of the Euclidean norm in SI units, and
+        per platform/arm part), and the flags of the module docstring.
     """
     t = log["t"]
     error = log["xi_true"] - log["xi_d"]
@@ -32,24 +57,100 @@ def summarize(log: RunLog) -> dict[str, Any]:
     posture = np.asarray(log.meta["posture_target"])
     storage = log["storage"][after]
     increases = np.diff(storage[np.isfinite(storage)])
+    lost = np.asarray(log["target_lost"], dtype=bool)
+    oscillation, window_start = oscillation_rms(t, error)
+    tracking = log["v"] - log["u"]
+    n_base = len(log["v"][0]) - len(posture)
+    limits = np.asarray(log.meta["velocity_limits"], dtype=float)
     return {
         "scenario": log.meta["scenario"],
         "robot": log.meta["robot"],
         "law": log.meta["law"],
+        "compensation": log.meta.get("compensation"),
         "duration_s": float(t[-1]),
+        "image_height_px": int(log.meta["camera"]["height"]),
         "max_abs_error_final_window_px": _max(error[final]),
         "max_abs_error_after_transient_px": _max(error[after]),
+        "rms_error_after_transient_px": _rms(np.linalg.norm(error[after], axis=1)),
         "final_abs_error_px": np.abs(error[-1]).round(3).tolist(),
         "min_clearance_m": _min(log["clearance"]),
         "posture_error_final_window_rad": _max(log["arm"][final] - posture),
         "storage_increase_after_transient": float(np.sum(np.maximum(increases, 0.0))),
         "storage_decrease_after_transient": float(-np.sum(np.minimum(increases, 0.0))),
+        "velocity_tracking_rms": _rms(np.linalg.norm(tracking, axis=1)),
+        "velocity_tracking_rms_platform": _rms(np.linalg.norm(tracking[:, :n_base], axis=1)),
+        "velocity_tracking_rms_arm": _rms(np.linalg.norm(tracking[:, n_base:], axis=1)),
         "saturated_fraction": float(np.mean(log["saturated"])),
+        "v_ref_at_limit_fraction": float(
+            np.mean(np.any(np.abs(log["v_ref"]) >= AT_LIMIT * limits, axis=1))
+        ),
         "damped_fraction": float(np.mean(log["damped"])),
-        "target_lost_samples": int(np.sum(log["target_lost"])),
+        "target_lost_samples": int(np.sum(lost)),
+        "target_lost_first_s": float(t[np.argmax(lost)]) if lost.any() else None,
+        "joint_limit_violation": joint_limit_violation(log),
+        "oscillation_rms_px": oscillation,
+        "oscillation_window_start_s": window_start,
         "wall_time_s": float(log.meta["wall_time"]),
         "real_time_factor": float(t[-1] / max(log.meta["wall_time"], 1e-9)),
     }
+
+
+def oscillation_rms(t: np.ndarray, error: np.ndarray) -> tuple[float, float | None]:
+    """RMS of the error's part above :data:`OSCILLATION_CUTOFF_HZ` over its worst window.
+
+    Method: the feature error after :data:`TRANSIENT` (samples without a finite value are
+    filled by linear interpolation) is high-passed per component by a 4th-order Butterworth
+    filter at 0.5 Hz, run forward and backward (``scipy.signal.sosfiltfilt``, zero phase).
+    The norm of the filtered error over the components, squared, is averaged over every
+    window of :data:`FINAL_WINDOW` seconds (a moving mean); the largest mean's square root is
+    the result. A steady offset or a slow drift gives about 0; a limit cycle of amplitude
+    ``a`` px in one feature gives about ``a / sqrt(2)``.
+
+    Args:
+        t: Sample instants [s], uniformly spaced. Shape (T,).
+        error: Feature error [px]. Shape (T, r).
+
+    Returns:
+        The RMS [px] and the start [s] of the worst window; ``(0.0, None)`` when the run
+        after the transient is shorter than a window.
+    """
+    after = t >= TRANSIENT
+    times, values = t[after], np.asarray(error, dtype=float)[after]
+    if times.size < 2 or times[-1] - times[0] < FINAL_WINDOW:
+        return 0.0, None
+    rate = 1.0 / float(np.median(np.diff(times)))
+    filled = np.empty_like(values)
+    for j in range(values.shape[1]):
+        finite = np.isfinite(values[:, j])
+        if not finite.any():
+            return 0.0, None
+        filled[:, j] = np.interp(times, times[finite], values[finite, j])
+    sos = signal.butter(4, OSCILLATION_CUTOFF_HZ, "highpass", fs=rate, output="sos")
+    high = signal.sosfiltfilt(sos, filled, axis=0)
+    width = max(1, round(FINAL_WINDOW * rate))
+    power = np.convolve(np.sum(high**2, axis=1), np.ones(width) / width, mode="valid")
+    worst = int(np.argmax(power))
+    return float(np.sqrt(power[worst])), float(times[worst])
+
+
+def joint_limit_violation(log: RunLog) -> float | None:
+    """Largest excursion of an arm joint beyond its position limits [rad or m]; 0 if none.
+
+    None when the log does not record the limits.
+    """
+    limits = log.meta.get("arm_position_limits")
+    if limits is None:
+        return None
+    lower, upper = (np.array([np.nan if x is None else x for x in side]) for side in limits)
+    arm = np.asarray(log["arm"], dtype=float)
+    below = np.nan_to_num(lower - arm, nan=0.0)
+    above = np.nan_to_num(arm - upper, nan=0.0)
+    return float(max(0.0, below.max(initial=0.0), above.max(initial=0.0)))
+
+
+def _rms(values: np.ndarray) -> float:
+    finite = values[np.isfinite(values)]
+    return float(np.sqrt(np.mean(finite**2))) if finite.size else float("nan")
 
 
 def _max(values: np.ndarray) -> float:
