@@ -72,11 +72,15 @@ def reproduce(out: Path, robots: tuple[str, ...] = OTHER_ROBOTS, baseline: bool 
         Path of the markdown report.
     """
     from pbvs_pin.analysis import analyze_run
+    from pbvs_pin.baseline import baseline_scenario, baseline_section, comparison_figures
+    from pbvs_pin.baseline import matched_ibvs_gain
 
-    reference, others, classic, analyses = [], [], [], []
+    reference, others, classic, analyses, pairs = [], [], [], [], []
+    gain = matched_ibvs_gain() if baseline else 0.0
     for name in PAPER_CLAIMS:
         folder = out / name
-        reference.append(run_scenario(name, folder, folder / "replay.html")[1])
+        passivity_log, passivity = run_scenario(name, folder, folder / "replay.html")
+        reference.append(passivity)
         analyses.append(analyze_run(folder, out=folder / "analysis"))
         print(f"{name}: max |error| over the last 5 s = "
               f"{reference[-1]['max_abs_error_final_window_px']:.2f} px")  # fmt: skip
@@ -84,10 +88,12 @@ def reproduce(out: Path, robots: tuple[str, ...] = OTHER_ROBOTS, baseline: bool 
             scenario = load_scenario(name).with_values(**{"robot.name": robot})
             others.append(run_scenario(scenario, out / robot / name)[1])
         if baseline:
-            scenario = load_scenario(name).with_values(**{"controller.law": "ibvs"})
-            classic.append(run_scenario(scenario, out / "ibvs" / name)[1])
+            ibvs_log, ibvs = run_scenario(baseline_scenario(name, gain), out / "ibvs" / name)
+            classic.append(ibvs)
+            pairs.append((name, comparison_figures(passivity_log), comparison_figures(ibvs_log)))
     path = out / "report.md"
-    path.write_text(_report(reference, others, classic) + _analysis_section(analyses))
+    comparison = baseline_section(pairs, gain) if baseline else ""
+    path.write_text(_report(reference, others, classic) + comparison + _analysis_section(analyses))
     return path
 
 
