@@ -72,8 +72,12 @@ def reproduce(out: Path, robots: tuple[str, ...] = OTHER_ROBOTS, baseline: bool 
         Path of the markdown report.
     """
     from pbvs_pin.analysis import analyze_run
-    from pbvs_pin.baseline import baseline_scenario, baseline_section, comparison_figures
-    from pbvs_pin.baseline import matched_ibvs_gain
+    from pbvs_pin.baseline import (
+        baseline_scenario,
+        baseline_section,
+        comparison_figures,
+        matched_ibvs_gain,
+    )
 
     reference, others, classic, analyses, pairs = [], [], [], [], []
     gain = matched_ibvs_gain() if baseline else 0.0
