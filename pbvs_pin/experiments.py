@@ -52,7 +52,7 @@ def run_scenario(
     log.save(out)
     summary = summarize(log)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    plot_run(log, out)
+    plot_run(log, out, footprint=(scenario.platform.length, scenario.platform.width))
     if html is not None:
         from pbvs_pin.viz.replay import write_run_replay
 
