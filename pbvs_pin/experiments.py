@@ -64,7 +64,7 @@ def run_scenario(
     summary = summarize(log)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     if figures:
-        plot_run(log, out)
+        plot_run(log, out, footprint=(scenario.platform.length, scenario.platform.width))
     if html is not None:
         from pbvs_pin.viz.replay import write_run_replay
 
@@ -97,8 +97,15 @@ def reproduce(
         Path of the markdown report.
     """
     from pbvs_pin.analysis import analyze_run
+    from pbvs_pin.baseline import (
+        baseline_scenario,
+        baseline_section,
+        comparison_figures,
+        matched_ibvs_gain,
+    )
 
-    reference, others, classic, analyses, modes = [], [], [], [], []
+    reference, others, classic, analyses, modes, pairs = [], [], [], [], [], []
+    gain = matched_ibvs_gain() if baseline else 0.0
     jobs = len(CLAIMS) * (1 + len(robots) + baseline + compensation * (len(COMPENSATION_MODES) - 1))
     done = 0
 
@@ -111,17 +118,20 @@ def reproduce(
     echo(f"{jobs} runs; after each, its row: {RUN_HEADER.splitlines()[0]}")
     for name in CLAIMS:
         folder = out / name
-        reference.append(finished(run_scenario(name, folder, folder / "replay.html")[1]))
+        passivity_log, passivity = run_scenario(name, folder, folder / "replay.html")
+        reference.append(finished(passivity))
         analyses.append(analyze_run(folder, out=folder / "analysis"))
         for robot in robots:
             scenario = load_scenario(name).with_values(**{"robot.name": robot})
             others.append(finished(run_scenario(scenario, out / robot / name)[1]))
         if baseline:
-            scenario = load_scenario(name).with_values(**{"controller.law": "ibvs"})
-            classic.append(finished(run_scenario(scenario, out / "ibvs" / name)[1]))
+            ibvs_log, ibvs = run_scenario(baseline_scenario(name, gain), out / "ibvs" / name)
+            classic.append(finished(ibvs))
+            pairs.append((name, comparison_figures(passivity_log), comparison_figures(ibvs_log)))
         if compensation:
             modes += _compensation_runs(name, reference[-1], out, finished)
-    text = _report(reference, others, classic, modes) + _analysis_section(analyses)
+    comparison = baseline_section(pairs, gain) if baseline else ""
+    text = _report(reference, others, classic, modes) + comparison + _analysis_section(analyses)
     path = out / "report.md"
     path.write_text(text)
     echo("")
@@ -241,7 +251,7 @@ def _report(reference: list, others: list, classic: list, modes: list | None = N
     if classic:
         lines += [
             "",
-            "## Classic IBVS baseline (u = -lambda J# e - J# J_o phat_dot)",
+            "## Classic IBVS baseline (same null-space objectives; gain rule below)",
             "",
             runs_table([s for pair in zip(reference, classic, strict=True) for s in pair]),
         ]

@@ -309,17 +309,25 @@ def test_well_conditioned_jacobian_is_not_damped():
 
 
 def test_classic_ibvs_law():
-    """u = -lambda J# e - J# J_o phat_dot (Moore-Penrose, pixels), null space ignored."""
+    """u = -lambda J# e - J# J_o phat_dot + (I - J# J) k1 tanh(k2 Lambda) (Moore-Penrose)."""
     rng = np.random.default_rng(12)
     jacobian, object_jacobian, velocity, secondary = _random_problem(rng, 5)
     jacobian_px, object_px = jacobian * SCALE, object_jacobian * SCALE
     error_px = np.array([30.0, -20.0, 10.0])
-    out = ClassicIbvs(0.5, NO_LIMITS).step(error_px, jacobian_px, object_px, velocity, secondary)
-    pinv = np.linalg.pinv(jacobian_px)
-    np.testing.assert_allclose(
-        out.u, -0.5 * pinv @ error_px - pinv @ object_px @ velocity, rtol=1e-8, atol=1e-12
+    gains = ServoGains()
+    out = ClassicIbvs(0.5, NO_LIMITS, gains).step(
+        error_px, jacobian_px, object_px, velocity, secondary
     )
-    np.testing.assert_array_equal(out.null_space, np.zeros(5))
+    pinv = np.linalg.pinv(jacobian_px)
+    shaped = np.array(gains.k1) * np.tanh(np.array(gains.k2) * secondary)
+    null_space = (np.eye(5) - pinv @ jacobian_px) @ shaped
+    np.testing.assert_allclose(out.null_space, null_space, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(
+        out.u, -0.5 * pinv @ error_px - pinv @ object_px @ velocity + null_space,
+        rtol=1e-8, atol=1e-12,
+    )  # fmt: skip
+    assert np.linalg.norm(null_space) > 1e-3  # the objectives do act
+    np.testing.assert_allclose(jacobian_px @ out.null_space, 0.0, atol=1e-9)
 
 
 # ---------------------------------------------------------------- gains and shapes

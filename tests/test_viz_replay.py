@@ -60,8 +60,8 @@ def run(tmp_path_factory):
         "html": html,
         "robot": robot,
         "geometry_paths": geometry_paths,
-        # joint nodes, 2 spheres, the camera node, 2 current image points
-        "n_tracks": len(moving_joints) + 2 + 1 + 2,
+        # joint nodes, 2 spheres, the camera node, 2 current image points, the follow node
+        "n_tracks": len(moving_joints) + 2 + 1 + 2 + 1,
     }
 
 

@@ -1,9 +1,13 @@
-r"""Classic image-based visual servoing baseline, as ViSP does it.
+r"""Classic image-based visual servoing baseline, as ViSP does it, with the same null space.
 
 .. math:: u = -\lambda\, J^\# \tilde\xi - J^\# J_o \hat{\dot p}
+              + (I - J^\# J)\, k_1 \tanh(k_2 \Lambda)
 
-with ``J#`` the (damped) Moore-Penrose pseudo-inverse, no null-space term, and the same
-velocity saturation as the passivity controller, so that the comparison is about the law.
+with ``J#`` the same (weighted, damped) pseudo-inverse, the same secondary-objective term as
+eq. (34) and the same velocity saturation as the passivity controller, so that the comparison
+is about the feedback law only. ``J`` and ``e`` are taken in controller units (``J# e`` does
+not depend on the unit; the damping threshold does). How ``lambda`` is chosen:
+:func:`pbvs_pin.baseline.matched_ibvs_gain`.
 """
 
 from __future__ import annotations
@@ -16,12 +20,12 @@ from pbvs_pin.exceptions import GainError
 
 
 class ClassicIbvs(PassivityController):
-    """``u = -lambda J# e - J# J_o phat_dot``.
+    """``u = -lambda J# e - J# J_o phat_dot + (I - J# J) k1 tanh(k2 Lambda)``.
 
     Args:
         gain: ``lambda`` [1/s].
         velocity_limits: Largest magnitude of each command. Shape (n,).
-        gains: Damping settings (only ``damping_threshold`` and ``max_damping`` are used).
+        gains: ``k1``, ``k2``, ``W``, feature scale and damping settings (``k`` is unused).
     """
 
     def __init__(
@@ -40,26 +44,32 @@ class ClassicIbvs(PassivityController):
         target_velocity: npt.ArrayLike,
         secondary: npt.ArrayLike,
     ) -> ControlOutput:
-        """The classic law; ``secondary`` is ignored. Same diagnostics as the passivity law."""
+        """The classic law with the null-space term. Same diagnostics as the passivity law.
+
+        Args: as :meth:`PassivityController.step` (``secondary`` is ``Lambda`` of eq. 16).
+        """
         error_px, jacobian_px, object_jacobian_px, target_velocity, secondary = self._inputs(
             error_px, jacobian_px, object_jacobian_px, target_velocity, secondary
         )
         r = error_px.shape[0]
-        inputs = (error_px, jacobian_px, object_jacobian_px, target_velocity)
+        inputs = (error_px, jacobian_px, object_jacobian_px, target_velocity, secondary)
         if not all(np.all(np.isfinite(x)) for x in inputs):
             return self.zero_output(r)
-        pinv, sigma_min, damped = self.pseudo_inverse(jacobian_px)
-        feedback = self.gain * (pinv @ error_px)
-        feedforward = pinv @ np.asarray(object_jacobian_px) @ target_velocity
-        u, factor = saturate(-feedback - feedforward, self.velocity_limits)
-        zero = np.zeros(self.n)
+        scale = self.gains.feature_scale
+        jacobian = jacobian_px / scale
+        pinv, sigma_min, damped = self.pseudo_inverse(jacobian)
+        feedback = self.gain * (pinv @ (error_px / scale))
+        feedforward = pinv @ (object_jacobian_px / scale) @ target_velocity
+        shaped = self.k1 * np.tanh(self.k2 * secondary)
+        null_space = shaped - pinv @ (jacobian @ shaped)
+        u, factor = saturate(null_space - feedback - feedforward, self.velocity_limits)
         return ControlOutput(
             u=u,
             error=error_px,
             storage=0.5 * float(error_px @ error_px),
-            nu=zero,
+            nu=np.zeros(self.n),
             feedforward=feedforward,
-            null_space=zero,
+            null_space=null_space,
             min_singular_value=sigma_min,
             damped=damped,
             saturated=factor < 1.0,

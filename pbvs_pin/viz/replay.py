@@ -10,6 +10,7 @@ and none to open it.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -22,11 +23,42 @@ from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.sections import RobotSection
 from pbvs_pin.sim.targets import centres_from
 from pbvs_pin.viz.animation import write_replay_html
+from pbvs_pin.viz.primitives import ROOT_PREFIX, set_camera_view, translation_pose
 from pbvs_pin.viz.recorder import offline_visualizer
 from pbvs_pin.viz.run_scene import RunFacts, RunScene, two_sphere_points
 
 REPLAY_RATE = 10.0
 """Frames per second kept in a replay [Hz] (the log is downsampled to this)."""
+FOLLOW_PATH = f"{ROOT_PREFIX}/follow"
+"""Meshcat path of the empty node the replay's viewing camera follows (animated)."""
+FOLLOW_VIEW = (-0.45, -0.6, 0.95)
+"""Viewing camera position relative to the followed point [m], close enough that the 5 cm
+target spheres are tens of pixels wide."""
+FOLLOW_HEIGHT = 0.3
+"""Height of the followed point [m] (about the camera's and the target's)."""
+FOLLOW_SCRIPT = """<script>
+(function () {
+  // Keep the orbit target on the followed node and move the viewing camera with it,
+  // so that the platform stays in frame; the user can still orbit and zoom.
+  const path = %s;
+  const render = viewer.render.bind(viewer);
+  viewer.render = function () {
+    let node = viewer.scene_tree;
+    for (const name of path) { node = node && node.children[name]; }
+    if (node) {
+      node.object.updateMatrixWorld(true);
+      const p = viewer.camera.position.clone().setFromMatrixPosition(node.object.matrixWorld);
+      viewer.camera.parent.worldToLocal(p);
+      const shift = p.clone().sub(viewer.controls.target);
+      viewer.controls.target.copy(p);
+      viewer.camera.position.add(shift);
+    }
+    render();
+  };
+})();
+</script>
+</body>"""
+"""Script appended to the replay page: the viewing camera follows :data:`FOLLOW_PATH`."""
 
 
 def log_robot(log: RunLog) -> MobileManipulator:
@@ -83,7 +115,8 @@ def write_run_replay(log: RunLog, path: str | Path, rate: float = REPLAY_RATE) -
     interpolates between keys. The log keeps only three measured features (``u1, v1, v2``),
     so the current image points shown are the exact projections of the logged sphere
     centres from the logged configuration (where a centre is behind the camera, the last
-    visible position is held). The trails use every logged sample.
+    visible position is held). The trails use every logged sample. The viewing camera
+    follows the platform (:func:`follow_point`, :data:`FOLLOW_SCRIPT`).
 
     Args:
         log: The run's log (its ``meta["robot"]`` names the robot to draw).
@@ -108,11 +141,29 @@ def write_run_replay(log: RunLog, path: str | Path, rate: float = REPLAY_RATE) -
     vis = offline_visualizer()
     run = RunScene(vis, robot, facts)
     run.draw_trails([run.platform_point(q) for q in log["q"]], log["target"])
+    set_camera_view(vis, FOLLOW_VIEW)
     last_seen = np.asarray(facts.desired_points, dtype=float)
     frames = []
     for k in keep:
         centres = centres_from(tops[k], separation)
         points = true_image_points(robot, log["q"][k], centres)
         last_seen = np.where(np.isfinite(points), points, last_seen)
-        frames.append(run.poses(log["q"][k], centres, last_seen))
-    return write_replay_html(path, vis, times, lambda k, _t: frames[k], fps=rate)
+        poses = run.poses(log["q"][k], centres, last_seen)
+        poses[FOLLOW_PATH] = translation_pose(follow_point(run.platform_point(log["q"][k]),
+                                                          log["target"][k]))  # fmt: skip
+        frames.append(poses)
+    out = write_replay_html(path, vis, times, lambda k, _t: frames[k], fps=rate)
+    names = json.dumps(["meshcat", *FOLLOW_PATH.split("/")])
+    html = out.read_text(encoding="utf-8")
+    head, _, tail = html.rpartition("</body>")
+    out.write_text(head + FOLLOW_SCRIPT % names + tail, encoding="utf-8")
+    return out
+
+
+def follow_point(platform: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Point the replay's viewing camera follows [m]. Shape (3,).
+
+    Halfway between the platform point and the target in X-Y, at :data:`FOLLOW_HEIGHT`.
+    """
+    middle = (np.asarray(platform[:2], dtype=float) + np.asarray(target[:2], dtype=float)) / 2
+    return np.array([*middle, FOLLOW_HEIGHT])
