@@ -20,7 +20,7 @@ field at fault, and what to add.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
@@ -38,8 +38,31 @@ from pbvs_pin.exceptions import (
 )
 from pbvs_pin.robot import MobileManipulator
 
-if TYPE_CHECKING:
-    from pbvs_pin.sim.sections import RobotSection
+
+class RobotSection(Protocol):
+    """What this module reads of a ``[robot]`` table (:class:`pbvs_pin.sim.sections.RobotSection`).
+
+    Declared here, not imported, so that the table's module can use this one without a cycle.
+    """
+
+    source: str
+    name: str
+    urdf: str
+    camera_frame: str
+    base: str
+    arm: str
+    mount: tuple[float, ...] | None
+    camera_link: str
+    camera_pose: tuple[float, ...] | None
+    wheel_radius: float | None
+    track: float | None
+    wheel_speed_limit: float | None
+    home: tuple[float, ...] | None
+
+    @property
+    def form(self) -> str:
+        """Which of :data:`ROBOT_FORMS` the table uses."""
+        ...
 
 ROBOT_FORMS: dict[str, tuple[str, ...]] = {
     "name": ("name",),
