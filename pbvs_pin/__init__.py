@@ -4,6 +4,11 @@ The model layer turns URDF into what the controller needs: :class:`MobileManipul
 Pinocchio model of platform, arm and camera frame), base adapters, the pinhole camera of the
 paper's eq. (2), feature sets with the Jacobians of eq. (3), dynamics in actuated coordinates
 and the velocity-reference model of eq. (1).
+
+The simulation layer runs the paper's closed loop: :func:`load_scenario` reads a scenario (a
+shipped name such as ``"experiment1"`` or a TOML path) and :func:`simulate` runs it and returns
+its :class:`~pbvs_pin.sim.log.RunLog`. :class:`Controller` runs the same controller in a loop of
+your own (image points and encoders in, velocity references out).
 """
 
 from pbvs_pin.base import BaseAdapter, DifferentialDrive, FixedBase, Omnidirectional
@@ -34,11 +39,16 @@ from pbvs_pin.manipulability import (
     whole_body_manipulability,
 )
 from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.servo import Controller, ServoCommand
+from pbvs_pin.sim.log import RunLog
+from pbvs_pin.sim.loop import simulate
+from pbvs_pin.sim.scenario import Scenario, load_scenario
 
 __all__ = [
     "ROBOT_NAMES",
     "BaseAdapter",
     "CameraIntrinsics",
+    "Controller",
     "DifferentialDrive",
     "DriveAxleNotFound",
     "DynamicTerms",
@@ -57,7 +67,10 @@ __all__ = [
     "PbvsError",
     "PointBehindCamera",
     "RobotNotFound",
+    "RunLog",
+    "Scenario",
     "ScenarioError",
+    "ServoCommand",
     "ShapeError",
     "TwoSphereFeatures",
     "UrdfError",
@@ -66,9 +79,11 @@ __all__ = [
     "arm_manipulability",
     "compute_home",
     "load_robot",
+    "load_scenario",
     "manipulability",
     "max_manipulability_posture",
     "point_interaction_matrix",
     "rigid_body_terms",
+    "simulate",
     "whole_body_manipulability",
 ]

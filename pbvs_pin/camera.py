@@ -113,6 +113,22 @@ class CameraIntrinsics:
         f = self.focal_px
         return np.array([[-f / z, 0.0, -u / z], [0.0, -f / z, -v / z]])
 
+    def back_project(self, xi: npt.ArrayLike, depths: npt.ArrayLike) -> np.ndarray:
+        r"""Points in the optical frame from their image points and depths, eq. (2) inverted.
+
+        .. math:: \begin{bmatrix} x \\ y \end{bmatrix} = -\frac{z}{f} \xi
+
+        Args:
+            xi: Image points ``[u, v]`` [px]. Shape (k, 2).
+            depths: Depths ``z`` along the optical axis [m]. Shape (k,).
+
+        Returns:
+            ``[x, y, z]`` in the optical frame [m]. Shape (k, 3).
+        """
+        xi = np.asarray(xi, dtype=float)
+        depths = np.asarray(depths, dtype=float)
+        return np.column_stack([-xi * depths[:, None] / self.focal_px, depths])
+
     def to_pixel(self, xi: npt.ArrayLike) -> np.ndarray:
         """Image coordinates ``[u, v]`` to pixel ``[col, row]``. Shape (..., 2)."""
         xi = np.asarray(xi, dtype=float)

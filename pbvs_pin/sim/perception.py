@@ -28,9 +28,7 @@ class Perception:
         setup = self.setup
         self.measurement = frame.measurement(setup.model.camera, setup.target.diameter)
         pose = setup.model.camera_pose(frame.q)
-        depths = self.measurement.depths
-        f = setup.model.camera.focal_px
-        in_camera = np.column_stack([-frame.points * depths[:, None] / f, depths])
+        in_camera = setup.model.camera.back_project(frame.points, self.measurement.depths)
         self.filter.update(pose.act(in_camera.mean(axis=0)), frame.time)
 
     def velocity(self, t: float) -> np.ndarray:
