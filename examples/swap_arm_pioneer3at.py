@@ -36,7 +36,9 @@ def arms(args: argparse.Namespace) -> dict[str, tuple[str, str, tuple]]:
         "ur5 (example-robot-data)": ("ur5", "tool0", (0.0,) * 6),
         # a URDF file that already holds an optical frame (z forward, x right, y down)
         "cyton_alpha3.urdf": (
-            str(shipped_urdf("cyton_alpha3")), "camera_optical_frame", (0.0,) * 6
+            str(shipped_urdf("cyton_alpha3")),
+            "camera_optical_frame",
+            (0.0,) * 6,
         ),
     }
 

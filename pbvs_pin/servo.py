@@ -175,9 +175,7 @@ class Controller:
             error = xi - self.xi_d
             output = self.controller.step(error, jacobian, object_jacobian, velocity, secondary)
         v_ref, _ = self.compensator.step(q, v, output.u, dt)
-        return ServoCommand(
-            v_ref, output.u, error, velocity, self.measurement is not None, output
-        )
+        return ServoCommand(v_ref, output.u, error, velocity, self.measurement is not None, output)
 
     def _observe(
         self, q: np.ndarray, points: npt.ArrayLike, depths: npt.ArrayLike | None, t: float
