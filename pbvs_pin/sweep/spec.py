@@ -65,6 +65,28 @@ SWEEP_DEFAULTS: dict[str, Any] = {
 }
 """Keys of the ``[sweep]`` table and their defaults (``scenario`` is required)."""
 
+SWEEP_KEY_DOCS: dict[str, str] = {
+    "name": "The sweep's name; the file's stem when empty.",
+    "scenario": "Base scenario: a shipped name, or a path relative to the spec's folder.",
+    "seed": "Spec seed (integer >= 0); each run's simulation seed derives from it.",
+    "epsilon": "eps of eq. (31), in (0, 1), for the analysis columns.",
+    "timeout": "Wall-clock limit of one run [s]; a run over it is a failed row.",
+    "save_logs": "Also write logs/<run_id>/log.npz (needs a shared disk on Dask).",
+}
+"""What each key of the ``[sweep]`` table means (for the key reference)."""
+
+SWEEP_TABLE_DOCS: dict[str, str] = {
+    "fixed": "Dotted scenario fields set for every run, e.g. ``duration = 12.0``.",
+    "grid": "Dotted scenario field -> list of values; every combination is a run.",
+    "random": (
+        "``n`` runs (``seed``: the sample's seed, the spec seed by default) drawing each "
+        "dotted scenario field from ``{ range = [low, high] }`` (uniform; integers for "
+        "integer bounds; per component for arrays), ``{ range = [low, high], log = true }`` "
+        "(log-uniform) or ``{ choices = [...] }``."
+    ),
+}
+"""What the ``[fixed]``, ``[grid]`` and ``[random]`` tables hold (exactly one of the last two)."""
+
 
 def sweep_dir() -> Path:
     """Folder of the shipped sweep specs."""

@@ -1,0 +1,195 @@
+"""Build the HTML documentation, with every Sphinx warning an error.
+
+    python docs/build.py [OUT]     # default OUT: docs/_build/html
+
+The hand-written pages (``conf.py``, ``index.rst``) are copied into a temporary source folder
+beside three generated ones:
+
+- ``api.rst``: one ``automodule`` per module of the package (autodoc + napoleon, Google style);
+- ``scenario_keys.rst``: every scenario key, generated from the typed sections of
+  :mod:`pbvs_pin.sim.sections` (:func:`~pbvs_pin.sim.sections.keys_of`) and the obstacle
+  classes;
+- ``sweep_keys.rst``: every key of a sweep spec, from :mod:`pbvs_pin.sweep.spec`.
+
+Nothing is fetched: the build works offline.
+"""
+
+from __future__ import annotations
+
+import inspect
+import pkgutil
+import re
+import shutil
+import sys
+import tempfile
+from dataclasses import MISSING, fields
+from pathlib import Path
+from typing import Any
+
+import pbvs_pin
+from pbvs_pin.sim.scenario import OBSTACLE_KINDS, Scenario
+from pbvs_pin.sim.sections import SECTIONS, Sign, keys_of
+from pbvs_pin.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS, SWEEP_TABLE_DOCS
+
+DOCS = Path(__file__).resolve().parent
+HAND_WRITTEN = ("conf.py", "index.rst")
+
+
+def heading(title: str, underline: str) -> str:
+    """An RST section title."""
+    return f"{title}\n{underline * len(title)}\n\n"
+
+
+def literal(value: Any) -> str:
+    """A value as inline TOML-ish code (empty cell for "absent")."""
+    if value is None:
+        return "absent"
+    if isinstance(value, bool):
+        return f"``{str(value).lower()}``"
+    if isinstance(value, str):
+        return f'``"{value}"``'
+    if isinstance(value, tuple):
+        value = list(value)
+    return f"``{value}``"
+
+
+def table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
+    """An RST list-table."""
+    lines = [".. list-table::", "   :header-rows: 1", "   :widths: auto", ""]
+    for row in [header, *rows]:
+        lines.append(f"   * - {row[0]}")
+        lines.extend(f"     - {cell}" for cell in row[1:])
+    return "\n".join(lines) + "\n\n"
+
+
+def api_page() -> str:
+    """``api.rst``: every module of the package, in import-path order."""
+    modules = pkgutil.walk_packages(pbvs_pin.__path__, "pbvs_pin.")
+    names = ["pbvs_pin", *sorted(info.name for info in modules)]
+    text = heading("API reference", "=")
+    text += "Generated from the docstrings of every module.\n\n"
+    for name in names:
+        text += heading(name, "-") + f".. automodule:: {name}\n"
+        if name == "pbvs_pin":  # its members are documented in their own modules
+            text += "   :no-members:\n\n"
+            text += "Exported: " + ", ".join(f":py:obj:`{n}`" for n in pbvs_pin.__all__)
+        text += "\n\n"
+    return text
+
+
+def constraint(spec: Any) -> str:
+    """Type and check of a :func:`~pbvs_pin.sim.sections.key` field, in words."""
+    meta, default = spec.metadata, spec.default
+    if meta["choices"]:
+        words = "one of " + ", ".join(f"``{c}``" for c in meta["choices"])
+    elif meta["optional"] is not None:
+        words = f"{meta['optional'].__name__} or absent"
+    elif default is None or isinstance(default, tuple):
+        words = "array" + (f" of {meta['length']}" if meta["length"] else "")
+        words += " or absent" if default is None else ""
+    else:
+        words = type(default).__name__
+    if meta["sign"] is not Sign.ANY:
+        words += f", {meta['sign'].value}"
+    return words
+
+
+def section_rows(cls: type) -> list[tuple[str, ...]]:
+    """One row per key of a section: key, default, type and check, meaning."""
+    return [
+        (f"``{spec.name}``", literal(spec.default), constraint(spec), spec.metadata["doc"])
+        for spec in keys_of(cls)
+    ]
+
+
+def attribute_docs(cls: type) -> dict[str, str]:
+    """``name -> text`` from a Google-style ``Attributes:`` section of a class docstring."""
+    found = {}
+    in_section = False
+    for line in (inspect.getdoc(cls) or "").splitlines():
+        if line.strip() == "Attributes:":
+            in_section = True
+        elif in_section and (match := re.match(r"\s+(\w+):\s*(.*)", line)):
+            found[match.group(1)] = match.group(2)
+    return found
+
+
+def scenario_page() -> str:
+    """``scenario_keys.rst``: every table and key of a scenario file."""
+    header = ("key", "default", "type", "meaning")
+    text = heading("Scenario keys", "=")
+    text += (
+        "Every key a scenario file may hold, generated from the typed sections of "
+        ":mod:`pbvs_pin.sim.sections`. An absent key takes its default; an unknown key, a "
+        "wrong type, a wrong array length or a value of the wrong sign is an error naming the "
+        "file and the dotted field.\n\n"
+    )
+    text += heading("Root keys", "-") + table(header, section_rows(Scenario))
+    for cls in SECTIONS:
+        summary = (inspect.getdoc(cls) or "").split("\n\n")[0].replace("\n", " ")
+        text += heading(f"[{cls.TABLE}]", "-") + f"{summary}\n\n"
+        text += table(header, section_rows(cls))
+    text += heading("[[obstacles]]", "-")
+    text += "An array of tables, each with a ``kind`` and that kind's keys.\n\n"
+    for kind, cls in OBSTACLE_KINDS.items():
+        docs = attribute_docs(cls)
+        rows = [
+            (
+                f"``{spec.name}``",
+                "required" if spec.default is MISSING else literal(spec.default),
+                spec.type if isinstance(spec.type, str) else spec.type.__name__,
+                docs.get(spec.name, ""),
+            )
+            for spec in fields(cls)
+        ]
+        text += heading(f'kind = "{kind}"', "~") + table(header, rows)
+    return text
+
+
+def sweep_page() -> str:
+    """``sweep_keys.rst``: the tables and keys of a sweep spec."""
+    text = heading("Sweep keys", "=")
+    text += (
+        "Every key of a sweep spec (``pbvs-pin sweep SPEC``), generated from "
+        ":mod:`pbvs_pin.sweep.spec`. Field names are dotted scenario keys "
+        "(:doc:`scenario_keys`), checked when the spec is read.\n\n"
+    )
+    rows = [
+        (
+            f"``{name}``",
+            "required" if name == "scenario" else literal(default),
+            SWEEP_KEY_DOCS[name],
+        )
+        for name, default in SWEEP_DEFAULTS.items()
+    ]
+    text += heading("[sweep]", "-") + table(("key", "default", "meaning"), rows)
+    for name, doc in SWEEP_TABLE_DOCS.items():
+        text += heading(f"[{name}]", "-") + doc + "\n\n"
+    return text
+
+
+def generate(source: Path) -> None:
+    """Write the hand-written and the generated pages into ``source``."""
+    source.mkdir(parents=True, exist_ok=True)
+    for name in HAND_WRITTEN:
+        shutil.copy(DOCS / name, source / name)
+    (source / "api.rst").write_text(api_page())
+    (source / "scenario_keys.rst").write_text(scenario_page())
+    (source / "sweep_keys.rst").write_text(sweep_page())
+
+
+def build(out: Path) -> int:
+    """Generate the pages and run Sphinx with warnings as errors; return its exit status."""
+    from sphinx.cmd.build import build_main
+
+    with tempfile.TemporaryDirectory() as folder:
+        source = Path(folder) / "source"
+        generate(source)
+        return build_main(
+            ["-W", "--keep-going", "-q", "-E", "-d", str(Path(folder) / "doctrees"),
+             "-b", "html", str(source), str(out)]
+        )  # fmt: skip
+
+
+if __name__ == "__main__":
+    sys.exit(build(Path(sys.argv[1]) if len(sys.argv) > 1 else DOCS / "_build" / "html"))
