@@ -14,6 +14,7 @@ your own (image points and encoders in, velocity references out).
 from pbvs_pin.base import BaseAdapter, DifferentialDrive, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics, point_interaction_matrix
 from pbvs_pin.catalogue import ROBOT_NAMES, load_robot
+from pbvs_pin.controller import Controller, ServoCommand
 from pbvs_pin.dynamics import DynamicTerms, VelocityLoop, rigid_body_terms
 from pbvs_pin.exceptions import (
     DriveAxleNotFound,
@@ -39,7 +40,6 @@ from pbvs_pin.manipulability import (
     whole_body_manipulability,
 )
 from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.servo import Controller, ServoCommand
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import Scenario, load_scenario

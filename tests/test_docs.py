@@ -66,8 +66,8 @@ def test_every_sweep_key_is_documented(site):
 def test_the_api_reference_documents_the_public_api(site):
     raw = (site / "api.html").read_text()
     for name in (
-        "pbvs_pin.servo.Controller",
-        "pbvs_pin.servo.Controller.step",
+        "pbvs_pin.controller.Controller",
+        "pbvs_pin.controller.Controller.step",
         "pbvs_pin.sim.loop.simulate",
         "pbvs_pin.sim.scenario.load_scenario",
         "pbvs_pin.robot.MobileManipulator",
