@@ -3,7 +3,7 @@
 The model layer turns URDF into what the controller needs: :class:`MobileManipulator` (one
 Pinocchio model of platform, arm and camera frame), base adapters, the pinhole camera of the
 paper's eq. (2), feature sets with the Jacobians of eq. (3), dynamics in actuated coordinates
-and the velocity-reference model of eq. (1).
+and the velocity-reference model of eq. (1) with the URDF's servos (:class:`ServoModel`).
 """
 
 from pbvs_pin.base import BaseAdapter, DifferentialDrive, FixedBase, Omnidirectional
@@ -34,6 +34,7 @@ from pbvs_pin.manipulability import (
     whole_body_manipulability,
 )
 from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.servo import ServoModel
 
 __all__ = [
     "ROBOT_NAMES",
@@ -58,6 +59,7 @@ __all__ = [
     "PointBehindCamera",
     "RobotNotFound",
     "ScenarioError",
+    "ServoModel",
     "ShapeError",
     "TwoSphereFeatures",
     "UrdfError",
