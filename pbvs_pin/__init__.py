@@ -3,7 +3,7 @@
 The model layer turns URDF into what the controller needs: :class:`MobileManipulator` (one
 Pinocchio model of platform, arm and camera frame), base adapters, the pinhole camera of the
 paper's eq. (2), feature sets with the Jacobians of eq. (3), dynamics in actuated coordinates
-and the velocity-reference model of eq. (1).
+and the velocity-reference model of eq. (1) with the URDF's servos (:class:`ServoModel`).
 
 The simulation layer runs the paper's closed loop: :func:`load_scenario` reads a scenario (a
 shipped name such as ``"experiment1"`` or a TOML path) and :func:`simulate` runs it and returns
@@ -40,6 +40,7 @@ from pbvs_pin.manipulability import (
     whole_body_manipulability,
 )
 from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.servo import ServoModel
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import Scenario, load_scenario
@@ -71,6 +72,7 @@ __all__ = [
     "Scenario",
     "ScenarioError",
     "ServoCommand",
+    "ServoModel",
     "ShapeError",
     "TwoSphereFeatures",
     "UrdfError",

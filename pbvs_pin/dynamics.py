@@ -6,13 +6,17 @@ constraint forces drop out when projecting with ``S^T``:
 
 .. math:: M_v = S^T M S,\quad C_v = S^T C S,\quad g_v = S^T g.
 
-Commercial mobile manipulators take velocity references: low-level loops apply
-``tau = K_v (v_ref - v) - D v + G g_v``, where the diagonal ``G`` marks the joints whose servo
-cancels its own gravity load (arm servos do; a platform has no gravity load on its wheels).
-Substituting gives eq. (1) of the paper,
+Commercial mobile manipulators take velocity references: low-level servos turn them into
+torques, where a diagonal ``G`` marks the joints whose servo cancels its own gravity load (arm
+servos do; a platform has no gravity load on its wheels). Substituting the servo's torque gives
+eq. (1) of the paper,
 
 .. math:: M(q)\dot v + C(q, v) v + g(q) = v_{ref},\quad
-          M = K_v^{-1} M_v,\quad C = K_v^{-1}(C_v + D) + I,\quad g = K_v^{-1} (I - G) g_v.
+          M = K_e^{-1} M_v,\quad C = K_e^{-1} C_v + I,\quad g = K_e^{-1} (I - G) g_v,
+
+with ``K_e`` the servos' loop gain; :mod:`pbvs_pin.servo` models the servos (the plant's and
+the dynamic compensation's). :class:`VelocityLoop` holds fixed-gain arm servos for the MuJoCo
+plant (:mod:`pbvs_pin.mujoco_plant`).
 """
 
 from __future__ import annotations
@@ -26,7 +30,6 @@ import pinocchio as pin
 from numba import njit
 
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.linalg import cholesky_solve, matvec
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -78,7 +81,11 @@ def rigid_body_terms(robot: MobileManipulator, q: npt.ArrayLike, v: npt.ArrayLik
 
 @dataclass(frozen=True)
 class VelocityLoop:
-    """Low-level velocity loops ``tau = K_v (v_ref - v) - D v + G g_v`` of each velocity.
+    """Fixed-gain velocity loops ``tau = K_v (v_ref - v) - D v + G g_v`` of each velocity.
+
+    Gains set once at the home posture: the arm servos of the MuJoCo plant
+    (:class:`pbvs_pin.mujoco_plant.MujocoPlant`). The Pinocchio plant and the dynamic
+    compensation use the URDF's servos of :class:`pbvs_pin.servo.ServoModel`.
 
     Attributes:
         gains: ``K_v`` [N s/m for a linear speed, N m s/rad for a rate]. Shape (n,).
@@ -146,30 +153,6 @@ class VelocityLoop:
             gains, damping, np.zeros(robot.n, dtype=bool) if compensated is None else compensated
         )
 
-    def reference_model(
-        self, robot: MobileManipulator, q: npt.ArrayLike, v: npt.ArrayLike
-    ) -> DynamicTerms:
-        r"""The matrices of eq. (1).
-
-        .. math:: M = K_v^{-1} M_v,\quad C = K_v^{-1}(C_v + D) + I,\quad
-                  g = K_v^{-1} (I - G) g_v
-
-        Args:
-            robot: The robot.
-            q: Configuration. Shape (nq,).
-            v: Actuated velocity. Shape (n,).
-
-        Returns:
-            ``M`` [s], ``C`` [1], ``g`` [m/s or rad/s], so that ``M vdot + C v + g = v_ref``.
-        """
-        terms = rigid_body_terms(robot, q, v)
-        inverse = 1.0 / self.gains
-        return DynamicTerms(
-            inverse[:, None] * terms.mass,
-            inverse[:, None] * (terms.coriolis + np.diag(self.damping)) + np.eye(len(inverse)),
-            inverse * self.gravity_weight * terms.gravity,
-        )
-
 
 @njit(cache=True)
 def actuated_terms(
@@ -209,48 +192,3 @@ def actuated_terms(
                 for j in range(n):
                     mass_v[i, j] += s_ai * m_ab * selection[b, j]
     return mass_v, bias_v
-
-
-@njit(cache=True)
-def velocity_loop_step(
-    mass_upper: np.ndarray,
-    bias: np.ndarray,
-    gravity: np.ndarray,
-    selection: np.ndarray,
-    gains: np.ndarray,
-    damping: np.ndarray,
-    gravity_weight: np.ndarray,
-    v: np.ndarray,
-    v_ref: np.ndarray,
-    h: float,
-    v_pin_out: np.ndarray,
-    displacement_out: np.ndarray,
-) -> np.ndarray:
-    r"""One semi-implicit step of eq. (1) times ``K_v``: the plant's velocity update.
-
-    .. math:: (M_v + h (K_v + D))\, v_{k+1} = M_v v_k + h (K_v v_{ref} - C_v v_k - (I - G) g_v)
-
-    Args:
-        mass_upper: CRBA mass matrix, upper triangle filled. Shape (nv, nv).
-        bias: ``C_rb(q, S v) S v + g_rb`` (``pin.nonLinearEffects``). Shape (nv,).
-        gravity: Generalised gravity ``g_rb``. Shape (nv,).
-        selection: ``S``. Shape (nv, n).
-        gains: ``K_v``. Shape (n,).
-        damping: ``D``. Shape (n,).
-        gravity_weight: Diagonal of ``I - G`` (0 where the servo cancels gravity). Shape (n,).
-        v: Actuated velocity. Shape (n,).
-        v_ref: Velocity reference. Shape (n,).
-        h: Step [s].
-        v_pin_out: Written: ``S v_{k+1}``. Shape (nv,).
-        displacement_out: Written: ``S v_{k+1} h`` for ``pin.integrate``. Shape (nv,).
-
-    Returns:
-        ``v_{k+1}``. Shape (n,).
-    """
-    mass_v, bias_v = actuated_terms(mass_upper, bias, gravity, selection, gravity_weight)
-    lhs = mass_v + h * np.diag(gains + damping)
-    rhs = matvec(mass_v, v) + h * (gains * v_ref - bias_v)
-    v_next = cholesky_solve(lhs, rhs.reshape(-1, 1))[:, 0]
-    v_pin_out[:] = matvec(selection, v_next)
-    displacement_out[:] = h * v_pin_out
-    return v_next

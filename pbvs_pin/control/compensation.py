@@ -3,8 +3,10 @@ r"""Dynamic compensation, eq. (20).
 .. math:: v_{ref} = M(q)\left(\dot u - K_D (v - u)\right) + C(q, v)\, v + g(q)
 
 with ``M``, ``C``, ``g`` the velocity-reference model of eq. (1) built from the controller's
-own Pinocchio model (the matrices of :meth:`pbvs_pin.dynamics.VelocityLoop.reference_model`,
-applied in the compiled :func:`compensation_law`). With an exact
+own Pinocchio model and its model of the servos (the matrices of
+:meth:`pbvs_pin.servo.ServoModel.reference_model`, applied in the compiled
+:func:`compensation_law`, with the servo's loop gain recomputed from the mass matrix at every
+step). With an exact
 model it gives ``d/dt (v - u) = -K_D (v - u)``, eq. (21). The paper compensates the platform
 only; here the rows compensated are a setting.
 
@@ -25,10 +27,11 @@ from numba import njit
 
 from pbvs_pin.dynamics import actuated_terms
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.servo import scheduled_stiffness
 
 if TYPE_CHECKING:
-    from pbvs_pin.dynamics import VelocityLoop
     from pbvs_pin.robot import MobileManipulator
+    from pbvs_pin.servo import ServoModel
 
 
 @njit(cache=True)
@@ -37,8 +40,8 @@ def compensation_law(
     bias: np.ndarray,
     gravity: np.ndarray,
     selection: np.ndarray,
-    gain_inverse: np.ndarray,
-    damping: np.ndarray,
+    gain_per_mass: np.ndarray,
+    gain_constant: np.ndarray,
     gravity_weight: np.ndarray,
     rows: np.ndarray,
     k_d: np.ndarray,
@@ -49,8 +52,12 @@ def compensation_law(
 ) -> tuple[np.ndarray, float]:
     r"""Eq. (20) on the velocity-reference model of eq. (1), from Pinocchio's terms.
 
-    .. math:: M = K_v^{-1} S^T M_{rb} S,\quad C = K_v^{-1}(S^T C_{rb} S + D) + I,\quad
-              g = K_v^{-1} (I - G) S^T g_{rb},
+    .. math:: M = K_e^{-1} S^T M_{rb} S,\quad C = K_e^{-1} S^T C_{rb} S + I,\quad
+              g = K_e^{-1} (I - G) S^T g_{rb},
+
+    with the servos' loop gain ``K_e,i = a_i sum_j |M_v,ij(q)| + b_i`` at this ``q``
+    (:func:`pbvs_pin.servo.scheduled_stiffness`; :class:`pbvs_pin.servo.ServoModel` has
+    ``a = 1 / T`` and ``b = D``, its damping fed forward),
 
     .. math:: v_{ref} = M(\dot u - K_D (v - u)) + C v + g
 
@@ -59,8 +66,8 @@ def compensation_law(
         bias: ``C_rb(q, S v) S v + g_rb`` (``pin.nonLinearEffects``). Shape (nv,).
         gravity: Generalised gravity ``g_rb``. Shape (nv,).
         selection: ``S``. Shape (nv, n).
-        gain_inverse: ``1 / K_v``. Shape (n,).
-        damping: ``D``. Shape (n,).
+        gain_per_mass: ``a`` of the loop gain [1/s]. Shape (n,).
+        gain_constant: ``b`` of the loop gain [N s/m or N m s/rad]. Shape (n,).
         gravity_weight: Diagonal of ``I - G`` (0 where the servo cancels gravity). Shape (n,).
         rows: Which rows are compensated (the others pass ``u`` through). Shape (n,).
         k_d: Diagonal of ``K_D`` [1/s]. Shape (n,).
@@ -75,6 +82,7 @@ def compensation_law(
     """
     n = v.shape[0]
     mass_v, bias_v = actuated_terms(mass_upper, bias, gravity, selection, gravity_weight)
+    gains = scheduled_stiffness(mass_v, gain_per_mass, gain_constant)
     acceleration = np.empty(n)
     storage = 0.0
     for j in range(n):
@@ -85,10 +93,10 @@ def compensation_law(
     for i in range(n):
         value = u[i]
         if rows[i]:
-            inertial = bias_v[i] + damping[i] * v[i]
+            inertial = bias_v[i]
             for j in range(n):
                 inertial += mass_v[i, j] * acceleration[j]
-            value = gain_inverse[i] * inertial + v[i]
+            value = inertial / gains[i] + v[i]
         v_ref[i] = min(max(value, -limits[i]), limits[i])
     return v_ref, storage
 
@@ -106,7 +114,7 @@ class DynamicCompensator:
 
     Args:
         robot: The controller's model of the robot.
-        loop: The controller's model of the low-level velocity loops.
+        loop: The controller's model of the robot's servos.
         mode: Rows to compensate.
         k_d: Diagonal of ``K_D`` [1/s], one value or one per actuated velocity.
         derivative_time_constant: Low-pass time constant of ``udot`` [s].
@@ -115,7 +123,7 @@ class DynamicCompensator:
     def __init__(
         self,
         robot: MobileManipulator,
-        loop: VelocityLoop,
+        loop: ServoModel,
         mode: Compensation = Compensation.PLATFORM,
         k_d: npt.ArrayLike = 0.3,
         derivative_time_constant: float = 0.05,
@@ -137,7 +145,7 @@ class DynamicCompensator:
             Compensation.ALL: np.ones(robot.n, dtype=bool),
         }[mode]
         self.any_row = bool(self.rows.any())
-        self.gain_inverse = 1.0 / loop.gains
+        self.gain_per_mass, self.gain_constant = loop.loop_gain_coefficients()
         self.previous_u: np.ndarray | None = None
         self.u_dot = np.zeros(robot.n)
 
@@ -172,7 +180,7 @@ class DynamicCompensator:
         bias = pin.nonLinearEffects(model, data, q, selection @ v)
         gravity = pin.computeGeneralizedGravity(model, data, q)
         return compensation_law(
-            mass, bias, gravity, selection, self.gain_inverse, self.loop.damping,
+            mass, bias, gravity, selection, self.gain_per_mass, self.gain_constant,
             self.loop.gravity_weight, self.rows, self.k_d, v, u, self.u_dot,
             self.robot.velocity_limits,
         )  # fmt: skip

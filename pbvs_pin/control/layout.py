@@ -61,10 +61,11 @@ class Parameters(NamedTuple):
     """Largest magnitude of each command and velocity reference [u]. Shape (n,)."""
     pseudo_inverse_damping: np.ndarray
     """``[sigma_0, mu_max]`` of the damped pseudo-inverse (controller units). Shape (2,)."""
-    gain_inverse: np.ndarray
-    """``1 / K_v`` of the velocity loops, eq. (1). Shape (n,)."""
-    loop_damping: np.ndarray
-    """Viscous friction ``D`` of the velocity loops. Shape (n,)."""
+    gain_per_mass: np.ndarray
+    """``a`` of the servos' loop gain ``K_e,i = a_i sum_j |M_v,ij| + b_i``, eq. (1) [1/s].
+    Shape (n,)."""
+    gain_constant: np.ndarray
+    """``b`` of that loop gain [N s/m or N m s/rad]. Shape (n,)."""
     gravity_weight: np.ndarray
     """Diagonal of ``I - G`` (0 where the servo cancels gravity) [1]. Shape (n,)."""
     compensated: np.ndarray
@@ -218,8 +219,8 @@ def parameter_views(params: np.ndarray, indices: np.ndarray) -> Parameters:
     k2, a = _cut(params, a, n)
     velocity_limits, a = _cut(params, a, n)
     pseudo_inverse_damping, a = _cut(params, a, 2)
-    gain_inverse, a = _cut(params, a, n)
-    loop_damping, a = _cut(params, a, n)
+    gain_per_mass, a = _cut(params, a, n)
+    gain_constant, a = _cut(params, a, n)
     gravity_weight, a = _cut(params, a, n)
     compensated, a = _cut(params, a, n)
     k_d, a = _cut(params, a, n)
@@ -236,8 +237,8 @@ def parameter_views(params: np.ndarray, indices: np.ndarray) -> Parameters:
         k2=k2,
         velocity_limits=velocity_limits,
         pseudo_inverse_damping=pseudo_inverse_damping,
-        gain_inverse=gain_inverse,
-        loop_damping=loop_damping,
+        gain_per_mass=gain_per_mass,
+        gain_constant=gain_constant,
         gravity_weight=gravity_weight,
         compensated=compensated,
         k_d=k_d,

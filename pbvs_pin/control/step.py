@@ -133,7 +133,7 @@ def fused_control_step(
             out.u_dot[j] += blend * ((u[j] - out.u_previous[j]) / dt - out.u_dot[j])
     out.u_previous[:] = u
     v_ref, v2 = compensation_law(
-        mass_upper, bias, gravity, p.selection, p.gain_inverse, p.loop_damping,
+        mass_upper, bias, gravity, p.selection, p.gain_per_mass, p.gain_constant,
         p.gravity_weight, p.compensated, p.k_d, v, u, out.u_dot, p.velocity_limits,
     )  # fmt: skip
     out.u[:] = u
@@ -191,8 +191,7 @@ class FusedControlStep:
         p.k2[:] = controller.k2
         p.velocity_limits[:] = controller.velocity_limits
         p.pseudo_inverse_damping[:] = controller.damping
-        p.gain_inverse[:] = 1.0 / loop.gains
-        p.loop_damping[:] = loop.damping
+        p.gain_per_mass[:], p.gain_constant[:] = loop.loop_gain_coefficients()
         p.gravity_weight[:] = loop.gravity_weight
         p.compensated[:] = compensator.rows
         p.k_d[:] = compensator.k_d

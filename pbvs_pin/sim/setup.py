@@ -24,12 +24,12 @@ from pbvs_pin.control.secondary import (
     ObstacleAvoidance,
     SecondaryObjective,
 )
-from pbvs_pin.dynamics import VelocityLoop
 from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.features import TwoSphereFeatures
 from pbvs_pin.manipulability import max_manipulability_posture
 from pbvs_pin.plant import Plant
 from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.servo import ServoModel
 from pbvs_pin.sim.obstacles import Laser, Obstacle
 from pbvs_pin.sim.scenario import Scenario
 from pbvs_pin.sim.sections import MotionSection
@@ -128,7 +128,7 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
         q0 = robot.home()
     errors = scenario.model_error
     model = robot.with_model_error(errors.kinematic_scale, errors.mass_scale)
-    plant = Plant(robot, VelocityLoop.from_time_constants(robot), q0, scenario.simulation.plant_dt)
+    plant = Plant(robot, ServoModel.from_robot(robot), q0, scenario.simulation.plant_dt)
     target_spec = scenario.target
     features = TwoSphereFeatures(target_spec.diameter)
     xi0 = np.asarray(target_spec.xi0, dtype=float)
@@ -144,7 +144,7 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
     comp = scenario.compensation
     compensator = DynamicCompensator(
         model,
-        VelocityLoop.from_time_constants(model),
+        ServoModel.from_robot(model),
         Compensation(comp.mode),
         _vector(scenario, "compensation.k_d", comp.k_d, model.n),
         comp.derivative_time_constant,

@@ -1,0 +1,385 @@
+r"""The robot's low-level velocity servos, as the URDF describes the joints: eq. (1)'s plant.
+
+One servo per actuated velocity ``v_i`` (platform forward speed and yaw rate, arm joint rates)
+applies
+
+.. math:: \tau_i = K_i(q)\,(r_i - v_i) + D_i r_i + F_i \tanh(r_i / v_s) + G_i g_{v,i},
+          \quad |\tau_i| \le \tau_{max,i},\quad r_i = \mathrm{clip}(v_{ref,i}, \pm v_{max,i})
+
+to the rigid-body dynamics with the URDF's viscous damping ``D`` and Coulomb friction ``F``
+(Pinocchio ``model.damping``, ``model.friction``; friction smoothed over ``v_s``),
+
+.. math:: M_v \dot v + C_v v + g_v + D v + F \tanh(v / v_s) = \tau + \tau_{stop}.
+
+- **Stiffness scheduled with the current mass matrix**:
+  ``K_i(q) = sum_j |M_v,ij(q)| / T_i``, with ``T_i`` the time constant of the joint's class
+  (:data:`PLATFORM_TIME_CONSTANTS`, :data:`REVOLUTE_TIME_CONSTANT`,
+  :data:`PRISMATIC_TIME_CONSTANT`). The row sum keeps a light joint from being dragged by a
+  heavy neighbour's accelerations; scheduling keeps the time constant at every posture (a
+  servo tuned once at home goes soft when the arm extends).
+- **Feed-forward of damping and friction**: at a constant reference the plant's ``D v +
+  F tanh(v / v_s)`` cancels the feed-forward exactly at ``v = r``, so a commanded speed is
+  reached (no ``K / (K + D)`` shortfall). The closed loop of one uncoupled joint is then a lag
+  of time constant ``M_ii / (K_i + D_i) <= T_i``.
+- **Limits**: references are clipped to the URDF speed limits, torques to its ``effort``
+  limits (``effort <= 0`` in a URDF means "not given": no limit), and ``tau_stop`` is a
+  unilateral, inelastic joint stop: a joint never passes its position limits (continuous
+  joints have none); the stop only pushes, so a joint leaves its limit when commanded away.
+
+Eq. (1) of the paper follows with the loop gain ``K_e(q) = K(q) + D`` (friction taken as
+cancelled by its feed-forward, exact when ``sign v = sign r`` away from zero speed):
+
+.. math:: M = K_e^{-1} M_v,\quad C = K_e^{-1} C_v + I,\quad g = K_e^{-1}(I - G) g_v,
+
+which :meth:`ServoModel.reference_model` returns and the dynamic compensation (eq. 20) applies
+with the coefficients of :meth:`ServoModel.loop_gain_coefficients`
+(``K_e,i = a_i sum_j |M_v,ij| + b_i``, :func:`scheduled_stiffness`).
+
+The plant steps these servos with :func:`servo_step`; :class:`ServoModel` keeps every parameter
+as a named attribute, so another plant can apply the same servos.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+from numba import njit
+
+from pbvs_pin.dynamics import (
+    ARM_TIME_CONSTANT,
+    PIONEER_TIME_CONSTANTS,
+    DynamicTerms,
+    actuated_terms,
+    rigid_body_terms,
+)
+from pbvs_pin.exceptions import GainError
+
+if TYPE_CHECKING:
+    from pbvs_pin.robot import MobileManipulator
+
+PLATFORM_TIME_CONSTANTS = PIONEER_TIME_CONSTANTS
+"""Time constants [s] of the platform's forward speed and yaw rate servos: a Pioneer's
+(Martins et al., 2008: 0.26 s and 0.23 s). A platform with other velocities repeats the first."""
+
+REVOLUTE_TIME_CONSTANT = ARM_TIME_CONSTANT
+"""Time constant [s] of a revolute arm joint's servo, 0.02 s (a hobby-grade or industrial arm
+servo tracks speed within a few tens of milliseconds)."""
+
+PRISMATIC_TIME_CONSTANT = 0.05
+"""Time constant [s] of a prismatic joint's servo (lifts and telescopes move whole arm
+sections through a screw or belt: slower than a revolute joint)."""
+
+FRICTION_SPEED = 1e-3
+"""Speed ``v_s`` [m/s or rad/s] over which Coulomb friction ``F tanh(v / v_s)`` changes sign."""
+
+
+@njit(cache=True)
+def scheduled_stiffness(
+    mass_v: np.ndarray, per_mass: np.ndarray, constant: np.ndarray
+) -> np.ndarray:
+    """Servo gains ``K_i = a_i sum_j |M_v,ij| + b_i`` scheduled with the current mass matrix.
+
+    Args:
+        mass_v: ``M_v`` [kg, kg m, kg m^2]. Shape (n, n).
+        per_mass: ``a`` [1/s] (the inverse of a time constant). Shape (n,).
+        constant: ``b`` [N s/m or N m s/rad]. Shape (n,).
+
+    Returns:
+        ``K`` [N s/m or N m s/rad]. Shape (n,).
+    """
+    n = mass_v.shape[0]
+    gains = np.empty(n)
+    for i in range(n):
+        row = 0.0
+        for j in range(n):
+            row += abs(mass_v[i, j])
+        gains[i] = per_mass[i] * row + constant[i]
+    return gains
+
+
+@dataclass(frozen=True)
+class ServoModel:
+    """The low-level servos of every actuated velocity (see the module docstring).
+
+    Attributes:
+        time_constants: ``T_i`` [s]. Shape (n,).
+        damping: URDF viscous damping ``D`` [N s/m or N m s/rad]. Shape (n,).
+        friction: URDF Coulomb friction ``F`` [N or N m]. Shape (n,).
+        effort: Torque (force) limits [N m or N]; ``inf`` for none. Shape (n,).
+        speed_limits: Largest reference accepted [m/s or rad/s]. Shape (n,).
+        gravity_compensated: Diagonal of ``G``: the servo cancels its joint's gravity load
+            (arm servos do). Shape (n,), bool.
+        stop_index: Actuated index of each joint with position stops. Shape (k,), int.
+        stop_q_index: Its index in ``q``. Shape (k,), int.
+        lower: Its lower limit [rad or m]. Shape (k,).
+        upper: Its upper limit [rad or m]. Shape (k,).
+        friction_speed: ``v_s`` [m/s or rad/s].
+    """
+
+    time_constants: np.ndarray
+    damping: np.ndarray
+    friction: np.ndarray
+    effort: np.ndarray
+    speed_limits: np.ndarray
+    gravity_compensated: np.ndarray
+    stop_index: np.ndarray
+    stop_q_index: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    friction_speed: float = FRICTION_SPEED
+
+    def __post_init__(self) -> None:
+        """Reject non-positive time constants, effort or speed limits, negative friction."""
+        checks = (
+            ("time_constants", self.time_constants, lambda a: a > 0, "> 0 s"),
+            ("damping", self.damping, lambda a: a >= 0, ">= 0"),
+            ("friction", self.friction, lambda a: a >= 0, ">= 0"),
+            ("effort", self.effort, lambda a: a > 0, "> 0"),
+            ("speed_limits", self.speed_limits, lambda a: a > 0, "> 0"),
+        )
+        for name, values, valid, expected in checks:
+            values = np.asarray(values, dtype=float)
+            if np.any(np.isnan(values)) or not np.all(valid(values)):
+                raise GainError(f"ServoModel.{name}: expected {expected}, got {values}")
+        if not self.friction_speed > 0:
+            raise GainError(f"ServoModel.friction_speed: expected > 0, got {self.friction_speed}")
+
+    @classmethod
+    def from_robot(
+        cls,
+        robot: MobileManipulator,
+        platform: tuple[float, ...] = PLATFORM_TIME_CONSTANTS,
+        revolute: float = REVOLUTE_TIME_CONSTANT,
+        prismatic: float = PRISMATIC_TIME_CONSTANT,
+    ) -> ServoModel:
+        """The servos of a robot: time constants by joint class, the rest from its URDF.
+
+        Args:
+            robot: The robot.
+            platform: Time constants of the platform's velocities [s].
+            revolute: Time constant of a revolute (or continuous) arm joint [s].
+            prismatic: Time constant of a prismatic arm joint [s].
+        """
+        model = robot.model
+        if len(platform) != robot.n_base:
+            platform = (platform[0],) * robot.n_base
+        taus, damping, friction = [*platform], [0.0] * robot.n_base, [0.0] * robot.n_base
+        effort = [np.inf] * robot.n_base
+        stop_index, stop_q_index, lower, upper = [], [], [], []
+        for i, name in enumerate(robot.arm_joint_names):
+            joint = model.joints[model.getJointId(name)]
+            kind = joint.shortname()
+            linear = "Prismatic" in kind or kind in ("JointModelPX", "JointModelPY", "JointModelPZ")
+            taus.append(prismatic if linear else revolute)
+            damping.append(float(model.damping[joint.idx_v]))
+            friction.append(float(model.friction[joint.idx_v]))
+            limit = float(model.effortLimit[joint.idx_v])
+            effort.append(limit if np.isfinite(limit) and limit > 0 else np.inf)
+            if joint.nq == 1:
+                low, high = (
+                    model.lowerPositionLimit[joint.idx_q],
+                    model.upperPositionLimit[joint.idx_q],
+                )
+                if np.isfinite(low) or np.isfinite(high):
+                    stop_index.append(robot.n_base + i)
+                    stop_q_index.append(joint.idx_q)
+                    lower.append(low)
+                    upper.append(high)
+        return cls(
+            np.array(taus, dtype=float),
+            np.array(damping),
+            np.array(friction),
+            np.array(effort),
+            np.asarray(robot.velocity_limits, dtype=float).copy(),
+            np.arange(robot.n) >= robot.n_base,
+            np.array(stop_index, dtype=np.int64),
+            np.array(stop_q_index, dtype=np.int64),
+            np.array(lower, dtype=float),
+            np.array(upper, dtype=float),
+        )
+
+    @property
+    def gravity_weight(self) -> np.ndarray:
+        """Diagonal of ``I - G``: 1 where gravity acts on the servo, 0 where it is cancelled."""
+        return 1.0 - np.asarray(self.gravity_compensated, dtype=float)
+
+    def loop_gain_coefficients(self) -> tuple[np.ndarray, np.ndarray]:
+        """``a``, ``b`` of eq. (1)'s loop gain ``K_e,i(q) = a_i sum_j |M_v,ij(q)| + b_i``.
+
+        The gain itself is :func:`scheduled_stiffness` of the current ``M_v``.
+
+        Returns:
+            ``a = 1 / T`` [1/s] and ``b = D`` [N s/m or N m s/rad] (the damping is fed forward,
+            so it adds to the gain and leaves ``C``). Each shape (n,).
+        """
+        return 1.0 / self.time_constants, self.damping.copy()
+
+    def reference_model(
+        self, robot: MobileManipulator, q: npt.ArrayLike, v: npt.ArrayLike
+    ) -> DynamicTerms:
+        r"""The matrices of eq. (1) for these servos (see the module docstring).
+
+        Args:
+            robot: The robot.
+            q: Configuration. Shape (nq,).
+            v: Actuated velocity. Shape (n,).
+
+        Returns:
+            ``M`` [s], ``C`` [1], ``g`` [m/s or rad/s], so that ``M vdot + C v + g = v_ref``.
+        """
+        terms = rigid_body_terms(robot, q, v)
+        inverse = 1.0 / scheduled_stiffness(terms.mass, *self.loop_gain_coefficients())
+        return DynamicTerms(
+            inverse[:, None] * terms.mass,
+            inverse[:, None] * terms.coriolis + np.eye(len(inverse)),
+            inverse * self.gravity_weight * terms.gravity,
+        )
+
+
+@njit(cache=True)
+def servo_step(
+    mass_upper: np.ndarray,
+    bias: np.ndarray,
+    gravity: np.ndarray,
+    selection: np.ndarray,
+    inverse_time_constants: np.ndarray,
+    damping: np.ndarray,
+    friction: np.ndarray,
+    friction_speed: float,
+    effort: np.ndarray,
+    speed_limits: np.ndarray,
+    gravity_weight: np.ndarray,
+    stop_index: np.ndarray,
+    positions: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    v: np.ndarray,
+    v_ref: np.ndarray,
+    h: float,
+    v_pin_out: np.ndarray,
+    displacement_out: np.ndarray,
+) -> np.ndarray:
+    r"""One linearly implicit step of the servoed dynamics, with torque limits and stops.
+
+    The servo's stiffness, the damping and the friction's slope are taken at the new
+    velocity (stable for stiff servos at a 1 ms step):
+
+    .. math:: (M_v + h (K + D + F'))\, v_{k+1} = M_v v_k
+              + h (K r + \tau_{ff} - C_v v_k - g_v - F(v_k) + F' v_k) + h \tau_{stop}
+
+    A small active set decides which servos saturate (their torque becomes ``+-effort``) and
+    which stops act (the joint's new velocity lands it on the limit, and the stop's reaction
+    must push away from the limit, else the stop is released).
+
+    Args:
+        mass_upper: CRBA mass matrix, upper triangle filled. Shape (nv, nv).
+        bias: ``pin.nonLinearEffects`` at ``S v``. Shape (nv,).
+        gravity: ``pin.computeGeneralizedGravity``. Shape (nv,).
+        selection: ``S``. Shape (nv, n).
+        inverse_time_constants: ``1 / T``. Shape (n,).
+        damping: ``D``. Shape (n,).
+        friction: ``F``. Shape (n,).
+        friction_speed: ``v_s``.
+        effort: Torque limits (``inf`` for none). Shape (n,).
+        speed_limits: Reference limits. Shape (n,).
+        gravity_weight: Diagonal of ``I - G``. Shape (n,).
+        stop_index: Actuated index of each stopped joint. Shape (k,).
+        positions: Their positions now. Shape (k,).
+        lower: Their lower limits. Shape (k,).
+        upper: Their upper limits. Shape (k,).
+        v: Actuated velocity now. Shape (n,).
+        v_ref: Velocity reference. Shape (n,).
+        h: Step [s].
+        v_pin_out: Written: ``S v_{k+1}``. Shape (nv,).
+        displacement_out: Written: ``S v_{k+1} h`` for ``pin.integrate``. Shape (nv,).
+
+    Returns:
+        ``v_{k+1}``. Shape (n,).
+    """
+    n = v.shape[0]
+    mass_v, bias_v = actuated_terms(mass_upper, bias, gravity, selection, np.ones(n))
+    gains = scheduled_stiffness(mass_v, inverse_time_constants, np.zeros(n))
+    reference = np.empty(n)
+    feed_forward = np.empty(n)
+    slope = np.empty(n)
+    base_rhs = np.empty(n)
+    for i in range(n):
+        reference[i] = min(max(v_ref[i], -speed_limits[i]), speed_limits[i])
+        gravity_v = 0.0
+        for a in range(selection.shape[0]):
+            gravity_v += selection[a, i] * gravity[a]
+        feed_forward[i] = (
+            damping[i] * reference[i]
+            + friction[i] * np.tanh(reference[i] / friction_speed)
+            + (1.0 - gravity_weight[i]) * gravity_v
+        )
+        now = np.tanh(v[i] / friction_speed)
+        slope[i] = friction[i] / friction_speed * (1.0 - now * now)
+        momentum = 0.0
+        for j in range(n):
+            momentum += mass_v[i, j] * v[j]
+        base_rhs[i] = momentum + h * (-bias_v[i] - friction[i] * now + slope[i] * v[i])
+    saturated = np.zeros(n)  # -1, 0, +1
+    stopped = np.zeros(n)  # -1 (lower), 0, +1 (upper)
+    target = np.zeros(n)
+    k = stop_index.shape[0]
+    v_next = v.copy()
+    for _ in range(3 * n + 3):
+        lhs = mass_v.copy()
+        rhs = base_rhs.copy()
+        for i in range(n):
+            lhs[i, i] += h * (damping[i] + slope[i])
+            if saturated[i] == 0.0:
+                lhs[i, i] += h * gains[i]
+                rhs[i] += h * (gains[i] * reference[i] + feed_forward[i])
+            else:
+                rhs[i] += h * saturated[i] * effort[i]
+        full_lhs, full_rhs = lhs.copy(), rhs.copy()
+        for i in range(n):
+            if stopped[i] != 0.0:
+                lhs[i, :] = 0.0
+                lhs[i, i] = 1.0
+                rhs[i] = target[i]
+        v_next = np.linalg.solve(lhs, rhs)
+        changed = False
+        for i in range(n):
+            torque = gains[i] * (reference[i] - v_next[i]) + feed_forward[i]
+            if saturated[i] == 0.0 and abs(torque) > effort[i]:
+                saturated[i] = np.sign(torque)
+                changed = True
+            elif saturated[i] != 0.0 and abs(torque) <= effort[i]:
+                saturated[i] = 0.0
+                changed = True
+        for s in range(k):
+            i = stop_index[s]
+            if stopped[i] != 0.0:
+                reaction = 0.0  # tau_stop = (lhs v - rhs)_i / h of the unconstrained row
+                for j in range(n):
+                    reaction += full_lhs[i, j] * v_next[j]
+                reaction -= full_rhs[i]
+                if reaction * stopped[i] > 0.0:  # it would pull the joint into its limit
+                    stopped[i] = 0.0
+                    changed = True
+            elif positions[s] + h * v_next[i] > upper[s]:
+                stopped[i], target[i] = 1.0, (upper[s] - positions[s]) / h
+                changed = True
+            elif positions[s] + h * v_next[i] < lower[s]:
+                stopped[i], target[i] = -1.0, (lower[s] - positions[s]) / h
+                changed = True
+        if not changed:
+            break
+    for s in range(k):  # should the active set not settle, the stops still hold
+        i = stop_index[s]
+        v_next[i] = min(
+            max(v_next[i], (lower[s] - positions[s]) / h), (upper[s] - positions[s]) / h
+        )
+    for a in range(selection.shape[0]):
+        total = 0.0
+        for j in range(n):
+            total += selection[a, j] * v_next[j]
+        v_pin_out[a] = total
+        displacement_out[a] = h * total
+    return v_next

@@ -1,0 +1,232 @@
+"""The plant's servos are the URDF's robot: damping and friction, limits, stops, time constants.
+
+``tests/data/damped_arm.urdf`` carries URDF damping and friction on every joint (a heavily
+damped revolute pan, a torque-limited pitch, a damped prismatic slide). Expected values come
+from the URDF (speeds, limits, efforts) or from Pinocchio's rigid-body algorithms called here,
+never from the servo code under test.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import DATA_DIR, random_configuration
+
+from pbvs_pin.exceptions import GainError
+from pbvs_pin.plant import Plant
+from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.servo import (
+    PLATFORM_TIME_CONSTANTS,
+    PRISMATIC_TIME_CONSTANT,
+    REVOLUTE_TIME_CONSTANT,
+    ServoModel,
+)
+
+DT = 1e-3
+PAN, PITCH, SLIDE = 2, 3, 4
+"""Actuated indices of the damped arm's joints (after the platform's u, omega)."""
+
+
+@pytest.fixture(scope="module")
+def damped():
+    return MobileManipulator.assemble(
+        base="pioneer3at",
+        arm=str(DATA_DIR / "damped_arm.urdf"),
+        mount=(0.1, 0.0, 0.27, 0.0, 0.0, 0.0),
+        camera_link="tool_link",
+    )
+
+
+def _start(robot):
+    return robot.with_arm_positions(robot.home(), [0.0, 0.0, 0.05])
+
+
+def _run(robot, servo, q0, v_ref, seconds):
+    """Plant under a constant reference; returns the velocities and configurations per step."""
+    plant = Plant(robot, servo, q0, DT)
+    velocities, configurations = [], []
+    for _ in range(round(seconds / DT)):
+        plant.step(v_ref)
+        velocities.append(plant.v.copy())
+        configurations.append(plant.q.copy())
+    return np.array(velocities), np.array(configurations)
+
+
+def test_servo_reads_the_urdf(damped):
+    servo = ServoModel.from_robot(damped)
+    np.testing.assert_allclose(servo.damping, [0, 0, 5.0, 0.05, 40.0])
+    np.testing.assert_allclose(servo.friction, [0, 0, 0.3, 0.0, 2.0])
+    np.testing.assert_allclose(servo.effort[2:], [20.0, 1.5, 50.0])
+    np.testing.assert_allclose(servo.lower, [-1.0, -1.2, 0.0])
+    np.testing.assert_allclose(servo.upper, [1.0, 1.2, 0.15])
+    expected = [*PLATFORM_TIME_CONSTANTS, REVOLUTE_TIME_CONSTANT, REVOLUTE_TIME_CONSTANT]
+    np.testing.assert_allclose(servo.time_constants, [*expected, PRISMATIC_TIME_CONSTANT])
+
+
+def test_servo_damping_from_the_reference_robots_urdf(cyton, cyton_urdf):
+    servo = ServoModel.from_robot(cyton)
+    root = ET.parse(cyton_urdf).getroot()
+    damping = {
+        j.get("name"): float(j.find("dynamics").get("damping"))
+        for j in root.findall("joint")
+        if j.find("dynamics") is not None
+    }
+    expected = [0.0, 0.0, *[damping[name] for name in cyton.arm_joint_names]]
+    assert np.count_nonzero(expected) > 0
+    np.testing.assert_allclose(servo.damping, expected)
+
+
+@pytest.mark.parametrize(("index", "speed"), [(PAN, 0.4), (PAN, -0.05), (SLIDE, 0.1)])
+def test_damped_joint_reaches_the_commanded_speed(damped, index, speed):
+    """With URDF damping D and friction, v reaches v_ref to 1 % within 3 time constants.
+
+    A servo without feed-forward would stop at K / (K + D) of the command.
+    """
+    servo = ServoModel.from_robot(damped)
+    v_ref = np.zeros(damped.n)
+    v_ref[index] = speed
+    three = 3 * servo.time_constants[index]
+    velocities, _ = _run(damped, servo, _start(damped), v_ref, three)
+    assert velocities[-1, index] == pytest.approx(speed, rel=0.01)
+
+
+def _rise_time(velocities, index, target):
+    """First time [s] the velocity reaches 1 - 1/e of ``target`` (linear interpolation)."""
+    normalised = velocities[:, index] / target
+    k = int(np.argmax(normalised >= 1 - np.exp(-1)))
+    assert k > 0
+    a, b = normalised[k - 1], normalised[k]
+    return (k + (1 - np.exp(-1) - a) / (b - a)) * DT
+
+
+@pytest.mark.parametrize(
+    ("name", "arm"),
+    [("pioneer_cyton", [0.0, 0.0, 0.0]), ("pioneer_cyton", [0.0, -1.2, 0.4]), ("tiago", None)],
+)
+def test_platform_time_constants_are_pioneer_like_at_any_posture(load, name, arm):
+    """The platform is a lag of 0.1-0.6 s, folded or extended arm alike (TIAGo: at home)."""
+    robot = load(name)
+    servo = ServoModel.from_robot(robot)
+    q0 = robot.home() if arm is None else robot.with_arm_positions(robot.home(), arm)
+    for index, amplitude in ((0, 0.3), (1, 0.5)):
+        v_ref = np.zeros(robot.n)
+        v_ref[index] = amplitude
+        velocities, _ = _run(robot, servo, q0, v_ref, 2.0)
+        assert velocities[-1, index] == pytest.approx(amplitude, rel=0.01)
+        assert np.all(np.abs(velocities[:, index]) <= 1.01 * amplitude)  # a lag, no overshoot
+        tau = _rise_time(velocities, index, amplitude)
+        assert 0.1 < tau < 0.6, f"{robot.velocity_names[index]}: {tau:.3f} s"
+
+
+def test_requested_platform_time_constants_bound_the_lag(cyton):
+    """``K_i = sum_j |M_v,ij| / T_i`` makes a joint's lag ``M_ii / K_i``: at most ``T_i``.
+
+    On the reference robot the platform's rows are nearly diagonal, so the lag is ``T_i``
+    within 5 %.
+    """
+    requested = (0.45, 0.15)
+    servo = ServoModel.from_robot(cyton, platform=requested)
+    for index, amplitude in ((0, 0.2), (1, -0.4)):
+        v_ref = np.zeros(cyton.n)
+        v_ref[index] = amplitude
+        velocities, _ = _run(cyton, servo, cyton.home(), v_ref, 3.0)
+        tau = _rise_time(velocities, index, amplitude)
+        assert 0.95 * requested[index] < tau <= 1.01 * requested[index]
+
+
+@pytest.mark.parametrize(("index", "speed", "limit"), [(PAN, 1.0, 1.0), (SLIDE, -0.3, 0.0)])
+def test_joint_stops_at_its_limit_and_leaves_it(damped, index, speed, limit):
+    servo = ServoModel.from_robot(damped)
+    q_index = damped.model.joints[damped.model.getJointId(damped.velocity_names[index])].idx_q
+    v_ref = np.zeros(damped.n)
+    v_ref[index] = speed
+    velocities, configurations = _run(damped, servo, _start(damped), v_ref, 1.5)
+    positions = configurations[:, q_index]
+    past = (positions - limit) * np.sign(speed)
+    assert past.max() <= 1e-9  # never past the URDF limit
+    assert positions[-1] == pytest.approx(limit, abs=1e-9)  # it got there and stays
+    assert abs(velocities[-1, index]) <= 1e-9  # no velocity into the stop
+    plant = Plant(damped, servo, configurations[-1], DT)
+    plant.v = velocities[-1]
+    for _ in range(200):
+        plant.step(-v_ref / 2)
+    assert (plant.q[q_index] - limit) * np.sign(speed) < -0.02  # left the stop
+    assert plant.v[index] == pytest.approx(-speed / 2, rel=0.02)
+
+
+def test_continuous_platform_yaw_has_no_stop(load):
+    robot = load("pioneer_cyton")
+    servo = ServoModel.from_robot(robot)
+    assert set(servo.stop_index.tolist()) == set(range(robot.n_base, robot.n))
+    v_ref = np.zeros(robot.n)
+    v_ref[1] = robot.velocity_limits[1]
+    _, configurations = _run(robot, servo, robot.home(), v_ref, 3.0 * np.pi / v_ref[1])
+    yaw = np.unwrap(np.arctan2(configurations[:, 3], configurations[:, 2]))
+    assert yaw[-1] - yaw[0] > 2 * np.pi  # more than a full turn
+
+
+def test_torque_limits_are_respected(damped):
+    """The torque each servo applies, recovered from the motion with Pinocchio's dynamics.
+
+    The step is ``tau = M_v (v+ - v) / h + b(q, v) + D v+`` (friction is zero on the pitch
+    joint), with ``b`` Pinocchio's nonlinear effects at the old velocity.
+    """
+    servo = ServoModel.from_robot(damped)
+    model, data, s = damped.model, damped.model.createData(), damped.selection
+    plant = Plant(damped, servo, _start(damped), DT)
+    v_ref = np.zeros(damped.n)
+    v_ref[PITCH] = -1.5  # a full-speed step: the servo asks for more than the effort limit
+    torques = []
+    for _ in range(150):
+        q, v = plant.q.copy(), plant.v.copy()
+        plant.step(v_ref)
+        mass = pin.crba(model, data, q)
+        mass = np.triu(mass) + np.triu(mass, 1).T
+        bias = pin.nonLinearEffects(model, data, q, s @ v)
+        torque = s.T @ (mass @ (s @ (plant.v - v)) / DT + bias) + servo.damping * plant.v
+        torques.append(torque[PITCH])
+    torques = np.abs(torques)
+    assert torques.max() <= 1.5 + 1e-9
+    assert torques.max() >= 1.5 - 1e-6  # the limit was reached, so it was tested
+    assert plant.v[PITCH] == pytest.approx(-1.5, rel=0.02)
+
+
+@pytest.mark.parametrize("name", ["damped", "pioneer_panda"])
+def test_reference_model_is_the_servoed_robot(request, load, name):
+    """M vdot + C v + g = v_ref of eq. (1) <=> the servo's torque moves the rigid body.
+
+    The servo torque is written here from its definition, with ``K_i = sum_j |M_v,ij| / T_i``
+    (friction left out: its feed-forward cancels it once ``sign v = sign v_ref``). The arm
+    servos cancel their own gravity load, the platform's have none to cancel.
+    """
+    robot = request.getfixturevalue("damped") if name == "damped" else load(name)
+    servo = ServoModel.from_robot(robot)
+    assert servo.gravity_compensated[robot.n_base :].all()
+    assert not servo.gravity_compensated[: robot.n_base].any()
+    rng = np.random.default_rng(8)
+    q = random_configuration(robot, rng)
+    v, acc = rng.uniform(-0.3, 0.3, robot.n), rng.uniform(-1, 1, robot.n)
+    terms = servo.reference_model(robot, q, v)
+    v_ref = terms.mass @ acc + terms.coriolis @ v + terms.gravity
+    model, data, s = robot.model, robot.model.createData(), robot.selection
+    mass_v = s.T @ pin.crba(model, data, q) @ s
+    mass_v = np.triu(mass_v) + np.triu(mass_v, 1).T
+    gains = np.abs(mass_v).sum(axis=1) / servo.time_constants
+    gravity = s.T @ pin.computeGeneralizedGravity(model, data, q)
+    servo_torque = gains * (v_ref - v) + servo.damping * v_ref + servo.gravity_compensated * gravity
+    needed = s.T @ pin.rnea(model, data, q, s @ v, s @ acc) + servo.damping * v
+    np.testing.assert_allclose(servo_torque, needed, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "field", ["time_constants", "damping", "friction", "effort", "speed_limits"]
+)
+def test_invalid_servo_parameters_raise(damped, field):
+    servo = ServoModel.from_robot(damped)
+    values = {name: getattr(servo, name) for name in servo.__dataclass_fields__}
+    values[field] = -values[field] - 1.0
+    with pytest.raises(GainError, match=field):
+        ServoModel(**values)
