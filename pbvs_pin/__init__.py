@@ -6,6 +6,8 @@ paper's eq. (2), feature sets with the Jacobians of eq. (3), dynamics in actuate
 and the velocity-reference model of eq. (1).
 """
 
+from importlib.metadata import PackageNotFoundError, version
+
 from pbvs_pin.base import BaseAdapter, DifferentialDrive, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics, point_interaction_matrix
 from pbvs_pin.catalogue import ROBOT_NAMES, load_robot
@@ -35,6 +37,12 @@ from pbvs_pin.manipulability import (
 )
 from pbvs_pin.robot import MobileManipulator
 
+try:
+    __version__ = version("pbvs_pin")
+    """The installed distribution's version (``pyproject.toml``)."""
+except PackageNotFoundError:  # a source tree that was never installed
+    __version__ = "0+unknown"
+
 __all__ = [
     "ROBOT_NAMES",
     "BaseAdapter",
@@ -63,6 +71,7 @@ __all__ = [
     "UrdfError",
     "VelocityLoop",
     "ViewerUnavailable",
+    "__version__",
     "arm_manipulability",
     "compute_home",
     "load_robot",
