@@ -1,7 +1,7 @@
 """Whether Numba's on-disk cache already holds the compiled control kernels.
 
-The kernels (``@njit(cache=True)`` in the modules of :data:`KERNEL_MODULES`) are compiled on
-their first call and cached on disk, next to the modules (``__pycache__``) or under
+The kernels (``@njit(cache=True)`` functions of the package's modules) are compiled on their
+first call and cached on disk, next to the modules (``__pycache__``) or under
 ``NUMBA_CACHE_DIR``. The first run on a machine therefore spends about
 :data:`COMPILE_SECONDS` compiling before its first step; :func:`compile_notice` says so, once,
 and says nothing when the cache is warm.
@@ -9,7 +9,6 @@ and says nothing when the cache is warm.
 
 from __future__ import annotations
 
-import importlib
 import sys
 from typing import TextIO
 
@@ -34,20 +33,22 @@ COMPILE_NOTICE = f"compiling the control kernels (once, about {COMPILE_SECONDS} 
 
 
 def cached_kernels() -> list:
-    """The Numba dispatchers that are cached on disk and compiled on their own.
+    """The Numba dispatchers of the imported pbvs_pin modules that are cached on disk.
 
-    Kernels declared ``inline="always"`` are inlined into their callers and may never get a
+    Only modules already imported are searched (a run imports every module it calls). Kernels
+    declared ``inline="always"`` are inlined into their callers and may never get a
     cache entry of their own, so they are left out.
     """
     from numba.core.caching import FunctionCache
     from numba.core.registry import CPUDispatcher
 
     kernels = []
-    for name in KERNEL_MODULES:
-        for value in vars(importlib.import_module(name)).values():
+    modules = [m for n, m in list(sys.modules.items()) if n.startswith("pbvs_pin.") and m]
+    for module in modules:
+        for value in vars(module).values():
             if (
                 isinstance(value, CPUDispatcher)
-                and value.__module__ == name
+                and value.__module__ == module.__name__
                 and isinstance(value._cache, FunctionCache)
                 and value.targetoptions.get("inline", "never") == "never"
             ):
