@@ -11,6 +11,8 @@ its :class:`~pbvs_pin.sim.log.RunLog`. :class:`Controller` runs the same control
 your own (image points and encoders in, velocity references out).
 """
 
+from importlib.metadata import PackageNotFoundError, version
+
 from pbvs_pin.base import BaseAdapter, DifferentialDrive, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics, point_interaction_matrix
 from pbvs_pin.catalogue import ROBOT_NAMES, load_robot
@@ -45,6 +47,12 @@ from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import Scenario, load_scenario
 
+try:
+    __version__ = version("pbvs_pin")
+    """The installed distribution's version (``pyproject.toml``)."""
+except PackageNotFoundError:  # a source tree that was never installed
+    __version__ = "0+unknown"
+
 __all__ = [
     "ROBOT_NAMES",
     "BaseAdapter",
@@ -78,6 +86,7 @@ __all__ = [
     "UrdfError",
     "VelocityLoop",
     "ViewerUnavailable",
+    "__version__",
     "arm_manipulability",
     "compute_home",
     "load_robot",

@@ -108,7 +108,7 @@ def _resolve(source: str | Path) -> tuple[Path, tuple[str, ...]]:
 
         from pbvs_pin.shipped import SHIPPED_URDFS
 
-        raise RobotNotFound(str(source), [*SHIPPED_URDFS, *ROBOTS])
+        raise RobotNotFound(str(source), SHIPPED_URDFS, ROBOTS)
     return erd
 
 

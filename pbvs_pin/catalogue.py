@@ -94,6 +94,22 @@ REFERENCE_ROBOT = "pioneer_cyton"
 ROBOT_NAMES = (REFERENCE_ROBOT, *RECIPES)
 """Every shipped robot name."""
 
+OTHER_ROBOTS = ("pioneer_ur5", "tiago")
+"""Robots the paper's experiments are repeated on by default, besides the reference robot."""
+
+
+def example_robot_data_arms() -> list[str]:
+    """example-robot-data names with a fixed base: arms to mount on a platform.
+
+    The others (legged robots, humanoids, drones) have a free-flyer root and cannot be arms.
+    Read from the loaders' class attributes; nothing is loaded.
+    """
+    from example_robot_data.robots_loader import ROBOTS
+
+    return sorted(
+        name for name, loader in ROBOTS.items() if not loader.free_flyer and loader.urdf_filename
+    )
+
 
 def build_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileManipulator:
     """Build a shipped robot, or load a URDF file that has a ``camera_optical_frame``.

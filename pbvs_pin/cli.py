@@ -1,22 +1,31 @@
 """The ``pbvs-pin`` command.
 
 Every subcommand prints a package error (:class:`pbvs_pin.exceptions.PbvsError`) as one line
-on stderr, without a traceback, and exits with status 2.
+on stderr, without a traceback, and exits with status 2. Ctrl-C prints one line and exits with
+status 130; during ``run`` the run so far is saved first (:class:`RunInterrupted`).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tomllib
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
-from pbvs_pin.exceptions import GainError, PbvsError, ScenarioError
+from pbvs_pin import __version__
+from pbvs_pin.catalogue import OTHER_ROBOTS, ROBOT_NAMES
+from pbvs_pin.exceptions import (
+    GainError,
+    PbvsError,
+    RobotNotFound,
+    RunInterrupted,
+    ScenarioError,
+    ViewerUnavailable,
+)
 from pbvs_pin.validation import positive_number
 
 if TYPE_CHECKING:
@@ -57,10 +66,11 @@ def _info(args: argparse.Namespace) -> None:
     robot = load_robot_argument(args.robot)
     q = robot.home()
     lower, upper = robot.arm_position_limits()
-    print(f"robot: {args.robot}  ({robot.source})")
+    label, source = _normalised(args.robot), _normalised(robot.source)
+    print(f"robot: {label}" + (f"  ({source})" if source != label else ""))
     print(f"base: {robot.base}")
     print(f"actuated dof n = {robot.n} (base {robot.n_base}, arm {robot.n_arm})")
-    print(f"{'velocity':<28}{'position limits':>26}{'velocity limit':>18}")
+    print(f"{'joint':<28}{'position limits':>26}{'velocity limit':>18}")
     for i, name in enumerate(robot.velocity_names):
         if i < robot.n_base:
             limits = "-"
@@ -68,37 +78,87 @@ def _info(args: argparse.Namespace) -> None:
             limits = f"[{lower[i - robot.n_base]:+.3f}, {upper[i - robot.n_base]:+.3f}]"
         print(f"{name:<28}{limits:>26}{robot.velocity_limits[i]:>18.3f}")
     camera = robot.camera
-    pose = robot.camera_pose(q)
+    position = ", ".join(f"{round(x, 3) + 0.0:+.3f}" for x in robot.camera_pose(q).translation)
     print(f"camera frame: {robot.camera_frame}")
     print(f"intrinsics: f = {camera.focal_px:g} px, image {camera.width} x {camera.height} px")
-    print(f"camera position at home [m]: {np.array2string(pose.translation, precision=3)}")
-    print(f"arm manipulability at home: {arm_manipulability(robot, q):.5g}")
-    print(f"whole-body manipulability at home: {whole_body_manipulability(robot, q):.5g}")
+    print(f"camera position at home [m]: [{position}]")
+    print(f"arm manipulability at home: {arm_manipulability(robot, q):.3g}")
+    if robot.n < 6:  # sqrt(det(J J^T)) of a 6 x n Jacobian is zero
+        print(f"whole-body manipulability at home: n/a (n = {robot.n} < 6)")
+    else:
+        print(f"whole-body manipulability at home: {whole_body_manipulability(robot, q):.3g}")
+
+
+def _normalised(text: str) -> str:
+    """An existing file's path without ``..`` and symbolic links; other text as it is."""
+    return str(Path(text).resolve()) if Path(text).is_file() else text
+
+
+def _list(args: argparse.Namespace) -> None:
+    """Print the shipped robots, example-robot-data arms, scenarios and sweeps."""
+    from pbvs_pin.catalogue import example_robot_data_arms
+    from pbvs_pin.sim.scenario import shipped_scenarios
+    from pbvs_pin.sweep.spec import sweep_dir
+
+    sections = (
+        ("shipped robots (pbvs-pin info NAME; [robot] name = NAME)", ROBOT_NAMES),
+        (
+            "example-robot-data arms (fixed base; [robot] arm = NAME with base, camera_link, "
+            "camera_pose: see the README)",
+            example_robot_data_arms(),
+        ),
+        ("scenarios (pbvs-pin run NAME)", shipped_scenarios()),
+        ("sweeps (pbvs-pin sweep NAME)", sorted(p.stem for p in sweep_dir().glob("*.toml"))),
+    )
+    for title, names in sections:
+        print(f"{title}:")
+        print("\n".join(f"  {name}" for name in names))
 
 
 def _run(args: argparse.Namespace) -> None:
-    """Run one scenario, optionally with a live Meshcat view."""
+    """Run one scenario, optionally with a live Meshcat view (the run goes on without one)."""
     from pbvs_pin.experiments import run_scenario
+    from pbvs_pin.sim.log import check_writable
 
     out = Path(args.out)
     html = Path(args.html) if args.html else None
+    live = None
     if args.meshcat:
         from pbvs_pin.viz.live import LiveView
 
-        with LiveView(args.scenario, speed=args.speed) as live:
+        check_writable(out, *([html] if html else []))  # before the server starts
+        try:
+            live = LiveView(args.scenario, speed=args.speed)
+        except ViewerUnavailable as err:
+            watch = f"the replay will be in {html}" if html else "add --html FILE to watch a replay"
+            print(
+                f"pbvs-pin: no live view ({err.reason}); running without it; {watch}",
+                file=sys.stderr,
+            )
+    if live is None:
+        summary = run_scenario(args.scenario, out, html)[1]
+    else:
+        with live:
             print(f"live view: {live.url} (playing at {args.speed:g}x real time)")
             summary = run_scenario(args.scenario, out, html, observer=live.show)[1]
-    else:
-        summary = run_scenario(args.scenario, out, html)[1]
     print(json.dumps(summary, indent=2))
-    print(f"log, summary and figures written to {out}")
+    print(f"log, summary and figures written to {out}" + (f"; replay: {html}" if html else ""))
 
 
 def _reproduce(args: argparse.Namespace) -> None:
     """Run the paper's four experiments and write the report."""
     from pbvs_pin.experiments import reproduce
 
-    report = reproduce(Path(args.out), compensation=not args.no_compensation)
+    for robot in args.robots:
+        if robot not in ROBOT_NAMES:
+            raise RobotNotFound(robot, ROBOT_NAMES)
+    report = reproduce(
+        Path(args.out),
+        robots=tuple(args.robots),
+        baseline=not args.no_baseline,
+        compensation=not args.no_compensation,
+        replays=not args.no_replay,
+    )
     print(f"report written to {report}")
 
 
@@ -149,18 +209,46 @@ ROBOT_HELP = (
 """Help of the robot argument of ``info`` and ``view``."""
 
 
+class _DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Help that shows each option's default, unless it has none (None, False)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        if action.default is None or action.default is False:
+            return action.help or ""
+        if isinstance(action.default, list):
+            return f"{action.help} (default: {' '.join(action.default)})"
+        return super()._get_help_string(action) or ""
+
+
+class _Parser(argparse.ArgumentParser):
+    """A parser whose help shows the defaults (:class:`_DefaultsFormatter`)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("formatter_class", _DefaultsFormatter)
+        super().__init__(*args, **kwargs)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="pbvs-pin",
         description="Passivity-based visual servoing of mobile manipulators (Pinocchio).",
     )
-    commands = parser.add_subparsers(dest="command", required=True)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     info = commands.add_parser("info", help="describe a robot (name, URDF or TOML [robot])")
     info.add_argument("robot", help=ROBOT_HELP)
     info.set_defaults(handler=_info)
+    listing = commands.add_parser(
+        "list", help="name the shipped robots, example-robot-data arms, scenarios and sweeps"
+    )
+    listing.set_defaults(handler=_list)
     run = commands.add_parser("run", help="simulate one scenario (shipped name or TOML path)")
-    run.add_argument("scenario")
+    run.add_argument(
+        "scenario",
+        help="shipped scenario name (experiment1 ... experiment4; see `pbvs-pin list`) or a "
+        "scenario TOML file",
+    )
     run.add_argument("--out", default="results/run", help="output folder")
     run.add_argument("--html", help="also write a standalone HTML replay to this file")
     run.add_argument("--meshcat", action="store_true", help="open a live Meshcat view")
@@ -168,11 +256,25 @@ def build_parser() -> argparse.ArgumentParser:
         "--speed",
         type=_positive_float,
         default=1.0,
-        help="with --meshcat: simulated seconds shown per second (default 1: real time)",
+        help="with --meshcat: simulated seconds shown per second; 1 is real time",
     )
     run.set_defaults(handler=_run)
     reproduce = commands.add_parser("reproduce", help="run the paper's four experiments")
     reproduce.add_argument("--out", default="results", help="output folder")
+    reproduce.add_argument(
+        "--robots",
+        nargs="*",
+        default=list(OTHER_ROBOTS),
+        metavar="NAME",
+        help="shipped robots to repeat the experiments on besides the reference robot "
+        "(none: give the option alone)",
+    )
+    reproduce.add_argument(
+        "--no-replay", action="store_true", help="skip the HTML replays of the reference runs"
+    )
+    reproduce.add_argument(
+        "--no-baseline", action="store_true", help="skip the classic IBVS baseline (4 runs)"
+    )
     reproduce.add_argument(
         "--no-compensation",
         action="store_true",
@@ -200,6 +302,10 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT), as a shell reports it."""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status."""
     args = build_parser().parse_args(argv)
@@ -209,7 +315,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     except PbvsError as err:
         print(f"pbvs-pin: error: {err}", file=sys.stderr)
         return 2
+    except RunInterrupted as stop:
+        print(f"pbvs-pin: {_interrupted(stop)}", file=sys.stderr)
+        return INTERRUPTED
+    except KeyboardInterrupt:
+        print("pbvs-pin: interrupted", file=sys.stderr)
+        return INTERRUPTED
+    except BrokenPipeError:  # e.g. `pbvs-pin list | head`: the reader left, nothing to say
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     return 0
+
+
+def _interrupted(stop: RunInterrupted) -> str:
+    """One line: where the run stopped and where the run so far is."""
+    if stop.log is None:
+        return "interrupted before the first logged step; nothing was saved"
+    log = stop.log
+    stopped = f"interrupted at t = {log['t'][-1]:.2f} s of {log.meta['duration']:g} s"
+    if stop.saved is None:
+        return f"{stopped}; the run so far was not saved"
+    return f"{stopped}; the run so far is in {stop.saved} (meta interrupted = true)"
 
 
 if __name__ == "__main__":

@@ -114,18 +114,33 @@ class PointBehindCamera(PbvsError):
 class RobotNotFound(PbvsError):
     """A robot name is neither a shipped robot, an example-robot-data name, nor a file."""
 
-    def __init__(self, name: str, available: Iterable[str]) -> None:
-        """Name the unknown robot and list the valid names.
+    def __init__(
+        self, name: str, available: Iterable[str], example_robot_data: Iterable[str] = ()
+    ) -> None:
+        """Name the unknown robot and list the valid names, shipped ones apart.
 
         Args:
             name: The name asked for.
-            available: Valid names.
+            available: Valid shipped names.
+            example_robot_data: Valid example-robot-data names, where those are accepted
+                (empty where only shipped names are).
         """
         self.name = name
-        super().__init__(
-            f"robot {name!r} is not a URDF file, a shipped robot or an example-robot-data "
-            f"name; shipped robots: {', '.join(sorted(available))}"
-        )
+        self.available = sorted(available)
+        self.example_robot_data = sorted(example_robot_data)
+        if self.example_robot_data:
+            message = (
+                f"robot {name!r} is not a URDF file, a shipped robot or an example-robot-data "
+                f"name; shipped: {', '.join(self.available)}; example-robot-data: "
+                f"{', '.join(self.example_robot_data)}"
+            )
+        else:
+            message = (
+                f"robot {name!r} is not a URDF file or a shipped robot; shipped robots: "
+                f"{', '.join(self.available)} (an example-robot-data arm goes on the reference "
+                'platform with a [robot] table, e.g. arm = "ur5"; `pbvs-pin list` names them)'
+            )
+        super().__init__(message)
 
 
 class ScenarioError(PbvsError):
@@ -180,3 +195,40 @@ class HomeNotFound(PbvsError):
             "check camera_link and camera_pose (optical frame: z forward, x right, y down), or "
             "give the home posture explicitly"
         )
+
+
+class OutputError(PbvsError):
+    """An output folder or file cannot be written (not writable, a full disk)."""
+
+    def __init__(self, path: str, problem: str) -> None:
+        """Name the path and the problem.
+
+        Args:
+            path: The folder or file that cannot be written.
+            problem: What went wrong, and what was (not) left behind.
+        """
+        self.path = path
+        super().__init__(f"{path}: {problem}")
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """A simulation was stopped by Ctrl-C; it carries the run so far.
+
+    A :class:`KeyboardInterrupt`, so that code which does not know it still stops.
+
+    Attributes:
+        log: The run so far (a :class:`pbvs_pin.sim.log.RunLog` whose ``meta["interrupted"]``
+            is true), or None when nothing had been recorded yet.
+        saved: Where the log was written, once it was.
+    """
+
+    def __init__(self, log: object | None, saved: str | None = None) -> None:
+        """Keep the partial log.
+
+        Args:
+            log: The run so far, or None.
+            saved: Path of the saved log, if it was saved.
+        """
+        self.log = log
+        self.saved = saved
+        super().__init__("run interrupted")

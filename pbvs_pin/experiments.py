@@ -11,6 +11,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from pbvs_pin.catalogue import OTHER_ROBOTS
+from pbvs_pin.exceptions import OutputError, RunInterrupted
 from pbvs_pin.report import (
     CLAIMS,
     COMPENSATION_MODES,
@@ -21,16 +23,13 @@ from pbvs_pin.report import (
     run_row,
     runs_table,
 )
-from pbvs_pin.sim.log import RunLog
+from pbvs_pin.sim.log import RunLog, check_writable, write_text_atomically
 from pbvs_pin.sim.loop import Snapshot, simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import Scenario, load_scenario
 
 PAPER_CLAIMS = {name: claim.text for name, claim in CLAIMS.items()}
 """The paper's claim for each experiment (§5); the rules are in :data:`pbvs_pin.report.CLAIMS`."""
-
-OTHER_ROBOTS = ("pioneer_ur5", "tiago")
-"""Robots the experiments are repeated on, besides the reference robot."""
 
 
 def run_scenario(
@@ -40,8 +39,12 @@ def run_scenario(
     progress: bool = True,
     observer: Callable[[Snapshot], None] | None = None,
     figures: bool = True,
+    status: Callable[[str], None] | None = None,
 ) -> tuple[RunLog, dict[str, Any]]:
     """Simulate one scenario; write ``log.npz``, ``summary.json`` and figures into ``out``.
+
+    The outputs are checked writable before the simulation starts; the log and summary are
+    written atomically (whole or not at all).
 
     Args:
         scenario: A shipped name, a TOML path, or a loaded scenario.
@@ -50,25 +53,45 @@ def run_scenario(
         progress: Show a progress bar.
         observer: Live-view callback, see :func:`pbvs_pin.sim.loop.simulate`.
         figures: Also draw the run's figures.
+        status: Told what is being written after the simulation ("figures", "replay").
 
     Returns:
         The log and its summary.
+
+    Raises:
+        OutputError: If ``out`` or ``html`` cannot be written (before simulating), or a write
+            fails (a full disk).
+        RunInterrupted: On Ctrl-C during the simulation, after the run so far was saved as
+            ``out/log.npz`` (``meta["interrupted"]`` true; no summary, figures or replay).
     """
     from pbvs_pin.viz.figures import plot_run
 
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
-    log = simulate(scenario, progress=progress, observer=observer)
-    out.mkdir(parents=True, exist_ok=True)
+    check_writable(out, *([html] if html is not None else []))
+    try:
+        log = simulate(scenario, progress=progress, observer=observer)
+    except RunInterrupted as stop:
+        if stop.log is not None:
+            stop.saved = str(stop.log.save(out))
+        raise
     log.save(out)
     summary = summarize(log)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    if figures:
-        plot_run(log, out, footprint=(scenario.platform.length, scenario.platform.width))
-    if html is not None:
-        from pbvs_pin.viz.replay import write_run_replay
+    write_text_atomically(out / "summary.json", json.dumps(summary, indent=2))
+    try:
+        if figures:
+            if status is not None:
+                status("figures")
+            plot_run(log, out, footprint=(scenario.platform.length, scenario.platform.width))
+        if html is not None:
+            from pbvs_pin.viz.replay import write_run_replay
 
-        write_run_replay(log, html)
+            if status is not None:
+                status("replay")
+            write_run_replay(log, html)
+    except OSError as err:
+        where = err.filename or out
+        raise OutputError(str(where), f"cannot write ({err.strerror or err})") from err
     return log, summary
 
 
@@ -78,12 +101,13 @@ def reproduce(
     baseline: bool = True,
     compensation: bool = True,
     echo: Callable[[str], None] = print,
+    replays: bool = True,
 ) -> Path:
     """Run Experiments 1-4 (reference robot, other robots, IBVS, compensation); write the report.
 
-    The reference runs get replays and analyses. Each run's row
-    (:func:`pbvs_pin.report.run_row`) is echoed as it finishes, and the table of every robot's
-    runs at the end.
+    The reference runs get figures, replays and analyses. Each run's row
+    (:func:`pbvs_pin.report.run_row`) is echoed as it finishes, a line before each figure,
+    replay and analysis step, and the table of every robot's runs at the end.
 
     Args:
         out: Output folder; each run gets a sub-folder.
@@ -92,6 +116,7 @@ def reproduce(
         compensation: Also run each experiment with the compensation modes of
             :data:`pbvs_pin.report.COMPENSATION_MODES` other than the scenario's own.
         echo: Where progress lines go.
+        replays: Also write an HTML replay of each reference run.
 
     Returns:
         Path of the markdown report.
@@ -118,8 +143,14 @@ def reproduce(
     echo(f"{jobs} runs; after each, its row: {RUN_HEADER.splitlines()[0]}")
     for name in CLAIMS:
         folder = out / name
-        passivity_log, passivity = run_scenario(name, folder, folder / "replay.html")
+        passivity_log, passivity = run_scenario(
+            name,
+            folder,
+            folder / "replay.html" if replays else None,
+            status=lambda what, name=name: echo(f"  {name}: writing {what}"),
+        )
         reference.append(finished(passivity))
+        echo(f"  {name}: passivity and L2-gain analysis")
         analyses.append(analyze_run(folder, out=folder / "analysis"))
         for robot in robots:
             scenario = load_scenario(name).with_values(**{"robot.name": robot})
@@ -130,10 +161,12 @@ def reproduce(
             pairs.append((name, comparison_figures(passivity_log), comparison_figures(ibvs_log)))
         if compensation:
             modes += _compensation_runs(name, reference[-1], out, finished)
+    echo(f"writing the report {out / 'report.md'}")
     comparison = baseline_section(pairs, gain) if baseline else ""
-    text = _report(reference, others, classic, modes) + comparison + _analysis_section(analyses)
+    text = _report(reference, others, classic, modes, replays)
+    text += comparison + _analysis_section(analyses)
     path = out / "report.md"
-    path.write_text(text)
+    write_text_atomically(path, text)
     echo("")
     echo(runs_table(reference + others))
     return path
@@ -226,7 +259,9 @@ def _fmt(value: Any) -> str:
     return str(value)
 
 
-def _report(reference: list, others: list, classic: list, modes: list | None = None) -> str:
+def _report(
+    reference: list, others: list, classic: list, modes: list | None = None, replays: bool = True
+) -> str:
     """The markdown report: claims and rules, every run's flagged row, IBVS, compensation."""
     lines = [
         "# pbvs_pin: the paper's experiments reproduced in simulation",
@@ -241,9 +276,14 @@ def _report(reference: list, others: list, classic: list, modes: list | None = N
         "",
         FLAG_RULES,
         "",
-        "Figures and an HTML replay of each experiment are in its folder: "
+        (
+            "Figures and an HTML replay of each experiment are in its folder: "
+            if replays
+            else "Figures of each experiment are in its folder: "
+        )
         + ", ".join(
-            f"[{n}]({n}/feature_errors.png) ([replay]({n}/replay.html))" for n in CLAIMS
+            f"[{n}]({n}/feature_errors.png)" + (f" ([replay]({n}/replay.html))" if replays else "")
+            for n in CLAIMS
         ),
     ]
     if others:

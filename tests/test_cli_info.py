@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 
@@ -90,3 +91,42 @@ def test_info_bad_urdf_in_a_real_process(tmp_path):
     assert result.returncode == 2
     assert result.stdout == ""
     _assert_one_error_line(result.stderr, str(path))
+
+
+def test_info_figures_are_meaningful_and_rounded(capsys):
+    """Three arm joints, n = 5 < 6: no whole-body manipulability (sqrt(det(J J^T)) = 0)."""
+    assert main(["info", "pioneer_cyton"]) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines()[3].split()[0] == "joint"
+    assert "whole-body manipulability at home: n/a (n = 5 < 6)" in out
+    position = next(line for line in out.splitlines() if line.startswith("camera position"))
+    assert "e-" not in position
+    values = position.split("[m]: ")[1].strip("[]").split(", ")
+    assert len(values) == 3
+    assert all(re.fullmatch(r"[+-]\d+\.\d{3}", value) for value in values)
+    assert values[1] == "+0.000"  # the camera sits on the platform's mid-plane
+    arm = next(line for line in out.splitlines() if line.startswith("arm manipulability"))
+    assert len(arm.split(": ")[1]) <= 7
+
+
+def test_info_normalises_paths(capsys):
+    argument = str(REPO_ROOT / "urdf" / ".." / "urdf" / "pioneer_cyton.urdf")
+    assert main(["info", argument]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert ".." not in first
+    assert first == f"robot: {(REPO_ROOT / 'urdf' / 'pioneer_cyton.urdf').resolve()}"
+
+
+def test_unknown_robot_separates_shipped_from_example_robot_data():
+    import pbvs_pin
+    from pbvs_pin.exceptions import RobotNotFound
+
+    with pytest.raises(RobotNotFound) as error:
+        pbvs_pin.MobileManipulator.assemble(base="pioneer3at", arm="iiwa", camera_link="tool0")
+    message = str(error.value)
+    shipped, erd = message.split("; example-robot-data: ")
+    assert "shipped: cyton_alpha3, pioneer3at, pioneer_cyton" in shipped
+    assert "ur5" not in shipped and "ur5" in erd.split(", ")
+    with pytest.raises(RobotNotFound) as error:
+        pbvs_pin.load_robot("iiwa")
+    assert "example-robot-data" in str(error.value) and ", ur5," not in str(error.value)

@@ -15,13 +15,18 @@ which the identity behind eq. (9) holds up to sampling.
 from __future__ import annotations
 
 import json
+import os
+import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, BinaryIO
 
 import numpy as np
 
+from pbvs_pin.exceptions import OutputError
 from pbvs_pin.manipulability import arm_jacobian, manipulability
 from pbvs_pin.sim.obstacles import clearance
 from pbvs_pin.sim.scenario import obstacle_table
@@ -64,12 +69,24 @@ class RunLog:
         """One channel."""
         return self.channels[name]
 
+    @property
+    def interrupted(self) -> bool:
+        """Whether the run was stopped (Ctrl-C) before its end: a partial log."""
+        return bool(self.meta.get("interrupted", False))
+
     def save(self, folder: str | Path) -> Path:
-        """Write ``log.npz`` (channels and meta) into ``folder``; return its path."""
+        """Write ``log.npz`` (channels and meta) into ``folder``, atomically; return its path.
+
+        The file is written under a temporary name in the same folder, then renamed: a
+        ``log.npz`` is always whole, and a failed write (a full disk) leaves none behind.
+
+        Raises:
+            OutputError: If the folder or the file cannot be written.
+        """
         folder = Path(folder)
-        folder.mkdir(parents=True, exist_ok=True)
         path = folder / "log.npz"
-        np.savez_compressed(path, meta=json.dumps(self.meta), **self.channels)
+        with atomic_file(path) as handle:
+            np.savez_compressed(handle, meta=json.dumps(self.meta), **self.channels)
         return path
 
     @classmethod
@@ -82,6 +99,82 @@ class RunLog:
             meta = json.loads(str(data["meta"]))
             channels = {name: data[name] for name in data.files if name != "meta"}
         return cls(channels, meta)
+
+
+@contextmanager
+def atomic_file(path: Path) -> Iterator[BinaryIO]:
+    """A binary file handle whose content replaces ``path`` only once all of it is written.
+
+    Writes to a temporary file in ``path``'s folder (created if missing), then
+    :func:`os.replace` s it onto ``path``. On any failure, Ctrl-C included, the temporary
+    file is removed and ``path`` is left as it was.
+
+    Raises:
+        OutputError: If the folder cannot be created or the file cannot be written (an
+            ``OSError`` such as a full disk or a read-only folder).
+    """
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        descriptor, temporary = tempfile.mkstemp(
+            prefix=f".{path.name}.", suffix=".tmp", dir=path.parent
+        )
+    except OSError as err:
+        raise OutputError(str(path), f"cannot write ({err.strerror or err})") from err
+    mask = os.umask(0)  # mkstemp makes the file private: give it the usual permissions
+    os.umask(mask)
+    try:
+        os.fchmod(descriptor, 0o666 & ~mask)
+        with os.fdopen(descriptor, "wb") as handle:
+            yield handle
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(temporary, path)
+    except BaseException as err:
+        with suppress(OSError):
+            os.unlink(temporary)
+        if isinstance(err, OSError):
+            raise OutputError(
+                str(path), f"cannot write ({err.strerror or err}); nothing was written"
+            ) from err
+        raise
+
+
+def check_writable(folder: Path, *files: Path) -> None:
+    """Make sure a run's outputs can be written, before the run: fail fast, not after it.
+
+    Creates ``folder`` and each file's folder (as the run would) and writes and removes a
+    temporary file in each; a file that exists must not be a folder.
+
+    Args:
+        folder: Output folder of the run.
+        files: Other files the run will write (e.g. an HTML replay).
+
+    Raises:
+        OutputError: If a folder cannot be created or written, or a file is a folder.
+    """
+    for path in files:
+        if path.is_dir():
+            raise OutputError(str(path), "is a folder; expected a file name")
+    for place in dict.fromkeys([folder, *(path.parent for path in files)]):
+        try:
+            place.mkdir(parents=True, exist_ok=True)
+            descriptor, probe = tempfile.mkstemp(prefix=".pbvs-pin-check.", dir=place)
+            os.close(descriptor)
+            os.unlink(probe)
+        except OSError as err:
+            raise OutputError(
+                str(place), f"cannot be written ({err.strerror or err}); nothing was run"
+            ) from err
+
+
+def write_text_atomically(path: Path, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` through :func:`atomic_file`.
+
+    Raises:
+        OutputError: If the file cannot be written.
+    """
+    with atomic_file(path) as handle:
+        handle.write(text.encode())
 
 
 class RunRecorder:
@@ -144,15 +237,24 @@ class RunRecorder:
             np.array(jacobians[1]) if jacobians else np.full((r, 3), np.nan)
         )
 
-    def finish(self, started: float) -> RunLog:
+    def finish(self, started: float, interrupted: bool = False) -> RunLog:
         """Derive the remaining channels and stack everything into a :class:`RunLog`.
 
         Args:
             started: ``time.perf_counter()`` when the run started; ``meta["wall_time"]`` is
                 the time from then until the log is complete.
+            interrupted: The run was stopped early: keep the samples recorded whole (a
+                sample cut by the interruption is dropped) and set ``meta["interrupted"]``.
         """
         setup = self.setup
-        recorded = {name: np.array(values) for name, values in self.rows.items()}
+        samples = min(
+            min(len(values) for values in self.rows.values()),
+            len(self._jacobians),
+            len(self._object_jacobians),
+        )
+        self._jacobians = self._jacobians[:samples]
+        self._object_jacobians = self._object_jacobians[:samples]
+        recorded = {name: np.array(values[:samples]) for name, values in self.rows.items()}
         derived = _derived_in_one_pass(setup, self.footprint, recorded["t"], recorded["q"])
         derived.update(
             _passivity_terms(
@@ -187,6 +289,7 @@ class RunRecorder:
             ],
             "compensation": scenario.compensation.mode,
             "duration": float(scenario.duration),
+            "interrupted": interrupted,
             "wall_time": wall_time,
             "obstacles": [obstacle_table(o) for o in scenario.obstacles],
             "target_diameter": setup.target.diameter,

@@ -11,11 +11,14 @@ from __future__ import annotations
 import time as wallclock
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
 from pbvs_pin.control.step import FusedControlStep
+from pbvs_pin.exceptions import RunInterrupted
+from pbvs_pin.kernels import compile_notice
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog, RunRecorder
 from pbvs_pin.sim.obstacles import footprint_points
@@ -54,6 +57,10 @@ def simulate(
 ) -> RunLog:
     """Run one scenario and return its log.
 
+    With ``progress``, a bar labelled with the scenario, robot and law goes to stderr, preceded
+    by one line (:func:`pbvs_pin.kernels.compile_notice`) when the control kernels are not
+    compiled yet.
+
     Args:
         scenario: A validated scenario.
         progress: Show a progress bar (tqdm) on stderr.
@@ -63,6 +70,10 @@ def simulate(
 
     Returns:
         The run's log (arrays at the log rate) with its setup's key facts.
+
+    Raises:
+        RunInterrupted: On Ctrl-C; it carries the run so far, its ``meta["interrupted"]``
+            true (None when nothing was recorded yet).
     """
     setup = build(scenario, robot)
     plant_dt = scenario.simulation.plant_dt
@@ -82,52 +93,60 @@ def simulate(
             setup.model, setup.features, setup.xi_d, setup.controller, setup.compensator,
             setup.objectives,
         )  # fmt: skip
+    if progress:
+        compile_notice()
     started = wallclock.perf_counter()
-    bar = _progress(steps, progress, setup.scenario.name)
-    for step in range(steps):
-        t = step * control_dt
-        plant = setup.plant
-        if setup.sensor.capture_due(t):
-            setup.sensor.capture(
-                t, setup.robot.camera_pose(plant.q), setup.target.centres(t), plant.q
-            )
-        frame = setup.sensor.deliver(t)
-        if frame is not None:
-            perception.take(frame)
-        if setup.obstacles and step % laser_every == 0:
-            laser_reading = _laser(setup, plant.q)
-            laser_array = np.array(laser_reading)
-        seen = perception.measurement is not None and not perception.lost
-        if fused is not None and seen:
-            _, v_ref, v2 = fused.step(
-                plant.q, plant.v, perception.measurement, perception.velocity(t), laser_array,
-                control_dt,
-            )  # fmt: skip
-        else:
-            if fused is not None:
-                fused.restart_derivative()  # the command derivative restarts after a loss
-            output, jacobians = _control_step(
-                setup, perception, plant.q, laser_reading, t, control_dt
-            )
-            v_ref, v2 = setup.compensator.step(plant.q, plant.v, output.u, control_dt)
-        if step % log_every == 0:
+    bar = _progress(steps, progress, progress_label(setup))
+    try:
+        for step in range(steps):
+            t = step * control_dt
+            plant = setup.plant
+            if setup.sensor.capture_due(t):
+                setup.sensor.capture(
+                    t, setup.robot.camera_pose(plant.q), setup.target.centres(t), plant.q
+                )
+            frame = setup.sensor.deliver(t)
+            if frame is not None:
+                perception.take(frame)
+            if setup.obstacles and step % laser_every == 0:
+                laser_reading = _laser(setup, plant.q)
+                laser_array = np.array(laser_reading)
+            seen = perception.measurement is not None and not perception.lost
             if fused is not None and seen:
-                output, jacobians = fused.output()
-            recorder.record(
-                t=t,
-                output=output,
-                jacobians=jacobians,
-                perception=perception,
-                v_ref=v_ref,
-                v2=v2,
-                laser=laser_reading,
-            )
-            if observer is not None:
-                observer(_snapshot(setup, perception, t))  # fmt: skip
-        for _ in range(substeps):
-            plant.step(v_ref)
+                _, v_ref, v2 = fused.step(
+                    plant.q, plant.v, perception.measurement, perception.velocity(t), laser_array,
+                    control_dt,
+                )  # fmt: skip
+            else:
+                if fused is not None:
+                    fused.restart_derivative()  # the command derivative restarts after a loss
+                output, jacobians = _control_step(
+                    setup, perception, plant.q, laser_reading, t, control_dt
+                )
+                v_ref, v2 = setup.compensator.step(plant.q, plant.v, output.u, control_dt)
+            if step % log_every == 0:
+                if fused is not None and seen:
+                    output, jacobians = fused.output()
+                recorder.record(
+                    t=t,
+                    output=output,
+                    jacobians=jacobians,
+                    perception=perception,
+                    v_ref=v_ref,
+                    v2=v2,
+                    laser=laser_reading,
+                )
+                if observer is not None:
+                    observer(_snapshot(setup, perception, t))  # fmt: skip
+            for _ in range(substeps):
+                plant.step(v_ref)
+            if bar is not None:
+                bar.update(1)
+    except KeyboardInterrupt as interrupt:
         if bar is not None:
-            bar.update(1)
+            bar.close()
+        log = recorder.finish(started, interrupted=True) if recorder.rows["t"] else None
+        raise RunInterrupted(log) from interrupt
     if bar is not None:
         bar.close()
     return recorder.finish(started)
@@ -139,6 +158,14 @@ def _snapshot(setup: Setup, perception: Perception, t: float) -> Snapshot:
     points = perception.measurement.points if seen else np.full((2, 2), np.nan)
     xi = setup.features.features(perception.measurement) if seen else np.full(3, np.nan)
     return Snapshot(t, setup.plant.q.copy(), setup.target.centres(t), xi, setup.xi_d, points)
+
+
+def progress_label(setup: Setup) -> str:
+    """A run's progress label: scenario, robot (a file by its name) and law."""
+    robot = setup.robot_meta()["robot"]
+    if "/" in robot or "\\" in robot:
+        robot = Path(robot).name
+    return f"{setup.scenario.name} {robot} {setup.scenario.controller.law}"
 
 
 def _progress(steps: int, enabled: bool, name: str):

@@ -1,0 +1,244 @@
+"""A new user's first hour with ``pbvs-pin`` (issue 11): version, list, help, progress, and
+nothing lost or corrupt when a run is stopped, the disk is full or the viewer cannot start."""
+
+from __future__ import annotations
+
+import errno
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from importlib.metadata import version
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import REPO_ROOT
+
+import pbvs_pin
+from pbvs_pin.cli import main
+from pbvs_pin.exceptions import OutputError
+from pbvs_pin.sim.log import RunLog
+from pbvs_pin.sim.scenario import scenario_dir
+
+
+def _scenario_file(tmp_path: Path, duration: float, name: str = "short") -> Path:
+    """experiment1 with another duration, as a TOML file of its own."""
+    text = (scenario_dir() / "experiment1.toml").read_text()
+    text, count = re.subn(r"(?m)^duration = .*$", f"duration = {duration}", text)
+    assert count == 1
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+def _cli(*args: str, env: dict | None = None, cwd: Path | None = None, **kwargs):
+    return subprocess.Popen(
+        [sys.executable, "-m", "pbvs_pin.cli", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(REPO_ROOT), **(env or {})},
+        cwd=cwd,
+        **kwargs,
+    )
+
+
+# ---------------------------------------------------------------- version, list, help
+def test_version_is_the_package_metadata(capsys):
+    assert pbvs_pin.__version__ == version("pbvs_pin")
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out.strip() == f"pbvs-pin {version('pbvs_pin')}"
+
+
+def test_list_names_robots_arms_scenarios_and_sweeps(capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    shipped, arms = out.split("example-robot-data arms")[:2]
+    for robot in ("pioneer_cyton", "pioneer_ur5", "tiago"):
+        assert f"  {robot}\n" in shipped
+    for arm in ("ur5", "panda", "z1"):
+        assert f"  {arm}\n" in arms
+    for legged in ("anymal", "solo12", "talos"):  # free-flyer roots: not arms
+        assert f"  {legged}\n" not in out
+    for scenario in ("experiment1", "experiment2", "experiment3", "experiment4"):
+        assert f"  {scenario}\n" in out
+    assert "sweeps" in out and "  target_speed\n" in out
+
+
+@pytest.mark.parametrize(
+    ("command", "fragments"),
+    [
+        ("run", ("(default: results/run)", "(default: 1.0)", "shipped scenario name")),
+        (
+            "reproduce",
+            ("(default: results)", "(default: pioneer_ur5 tiago)", "--no-replay", "--robots"),
+        ),
+        ("analyze", ("(default: 0.5)",)),
+    ],
+)
+def test_help_shows_defaults(capsys, command, fragments):
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    out = " ".join(capsys.readouterr().out.split())  # undo the wrapping
+    for fragment in fragments:
+        assert fragment in out
+    assert "(default: None)" not in out and "(default: False)" not in out
+
+
+def test_reproduce_refuses_an_unknown_robot_before_running(capsys):
+    status = main(["reproduce", "--robots", "pioneer_ur5", "iiwa"])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert err.count("\n") == 1 and "'iiwa'" in err and "pioneer_cyton" in err
+
+
+# ---------------------------------------------------------------- compile notice, progress
+def test_compile_notice_only_with_a_cold_cache(tmp_path):
+    """A fresh NUMBA_CACHE_DIR is cold: one notice line; the second process finds it warm."""
+    script = (
+        "from pbvs_pin.kernels import compile_notice, kernels_cached;"
+        "import sys; printed = compile_notice(sys.stdout);"
+        "from pbvs_pin.sim.loop import simulate;"
+        "from pbvs_pin.sim.scenario import load_scenario;"
+        "simulate(load_scenario('experiment1').with_values(duration=0.1));"
+        "print('warm after run:', kernels_cached())"
+    )
+    env = {**os.environ, "PYTHONPATH": str(REPO_ROOT), "NUMBA_CACHE_DIR": str(tmp_path)}
+    runs = [
+        subprocess.run(
+            [sys.executable, "-c", script], capture_output=True, text=True, env=env, check=True
+        ).stdout
+        for _ in range(2)
+    ]
+    assert runs[0].startswith("compiling the control kernels (once, about ")
+    assert runs[0].rstrip().endswith("warm after run: True")
+    assert "compiling" not in runs[1]
+    assert list(tmp_path.rglob("*.nbi"))
+
+
+def test_progress_is_labelled_with_scenario_robot_and_law(tmp_path):
+    scenario = _scenario_file(tmp_path, 1.0)
+    text = scenario.read_text().replace('name = "pioneer_cyton"', 'name = "pioneer_ur5"')
+    scenario.write_text(text)
+    process = _cli("run", str(scenario), "--out", str(tmp_path / "out"))
+    _, err = process.communicate(timeout=600)
+    assert process.returncode == 0, err
+    assert "pioneer_ur5 passivity" in err
+    assert "experiment1:" not in err
+
+
+# ---------------------------------------------------------------- nothing lost, nothing corrupt
+@pytest.mark.parametrize("option", ["--out", "--html"])
+def test_unwritable_output_is_refused_before_the_run(tmp_path, capsys, monkeypatch, option):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    simulated = []
+    monkeypatch.setattr("pbvs_pin.experiments.simulate", lambda *a, **k: simulated.append(1))
+    target = str(blocker / "sub" / ("replay.html" if option == "--html" else "run"))
+    args = ["run", "experiment1", "--out", str(tmp_path / "ok"), option, target]
+    status = main(args)
+    err = capsys.readouterr().err
+    assert status == 2
+    assert simulated == []
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert str(blocker) in err and "nothing was run" in err
+
+
+def test_html_that_is_a_folder_is_refused(tmp_path, capsys):
+    status = main(["run", "experiment1", "--out", str(tmp_path), "--html", str(tmp_path)])
+    assert status == 2
+    assert "is a folder" in capsys.readouterr().err
+
+
+def test_log_is_written_atomically(tmp_path, monkeypatch):
+    log = RunLog({"t": np.arange(3.0)}, {"scenario": "x"})
+    log.save(tmp_path)
+
+    def full_disk(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(np, "savez_compressed", full_disk)
+    with pytest.raises(OutputError, match=r"No space left on device\); nothing was written"):
+        RunLog({"t": np.arange(5.0)}, {"scenario": "y"}).save(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.npz"]  # no temporary left
+    assert RunLog.load(tmp_path).meta["scenario"] == "x"  # the old log is untouched
+
+
+def test_full_disk_is_one_line_and_leaves_no_log(tmp_path, capsys, monkeypatch):
+    def full_disk(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(np, "savez_compressed", full_disk)
+    status = main(["run", str(_scenario_file(tmp_path, 0.2)), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip()
+    assert status == 2
+    assert err.splitlines()[-1].startswith("pbvs-pin: error: ")
+    assert "No space left on device" in err and "Traceback" not in err
+    assert list((tmp_path / "out").iterdir()) == []  # nothing analyze or a resume would trust
+
+
+def test_full_tmpfs_leaves_no_log(tmp_path, capsys):
+    """A real full disk: a 64 kB tmpfs (needs root; skipped where mounting is refused)."""
+    full = tmp_path / "full"
+    full.mkdir()
+    mounted = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(full)], capture_output=True
+    )
+    if mounted.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        status = main(["run", str(_scenario_file(tmp_path, 20.0)), "--out", str(full)])
+        err = capsys.readouterr().err.strip()
+        assert status == 2
+        assert "No space left on device" in err.splitlines()[-1]
+        assert "Traceback" not in err
+        assert not (full / "log.npz").exists()
+        assert [p for p in full.iterdir() if p.name.startswith(".")] == []
+    finally:
+        subprocess.run(["umount", str(full)], check=True)
+
+
+def test_ctrl_c_saves_the_run_so_far(tmp_path):
+    """SIGINT once the progress bar has counted some steps (a 600 s run lasts > 20 s)."""
+    out = tmp_path / "out"
+    process = _cli("run", str(_scenario_file(tmp_path, 600.0)), "--out", str(out))
+    seen = ""
+    deadline = time.monotonic() + 600
+    while not re.search(r"\| *[1-9]\d*/\d+ \[", seen) and time.monotonic() < deadline:
+        seen += process.stderr.read(1)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    lines = (seen + err).replace("\r", "\n").strip().splitlines()
+    assert process.returncode == 130, seen + err
+    assert lines[-1].startswith("pbvs-pin: interrupted at t = ")
+    assert "Traceback" not in err
+    assert [line for line in lines if line.startswith("pbvs-pin")] == [lines[-1]]
+    log = RunLog.load(out)
+    assert log.interrupted and log.meta["interrupted"] is True
+    t = log["t"]
+    assert 0.0 < t[-1] < 600.0
+    assert all(len(channel) == len(t) for channel in log.channels.values())
+    assert f"t = {t[-1]:.2f} s of 600 s" in lines[-1] and str(out / "log.npz") in lines[-1]
+    assert not (out / "summary.json").exists()
+
+
+def test_run_goes_on_without_a_live_view(tmp_path, capsys, monkeypatch):
+    import meshcat.visualizer
+
+    def server_dies(*args, **kwargs):
+        raise RuntimeError("the meshcat server process exited prematurely with exit code 1")
+
+    monkeypatch.setattr(meshcat.visualizer, "start_zmq_server_as_subprocess", server_dies)
+    out = tmp_path / "out"
+    status = main(["run", str(_scenario_file(tmp_path, 0.3)), "--out", str(out), "--meshcat"])
+    captured = capsys.readouterr()
+    assert status == 0, captured.err
+    hint = [line for line in captured.err.splitlines() if line.startswith("pbvs-pin:")]
+    assert len(hint) == 1
+    assert "no live view" in hint[0] and "--html FILE" in hint[0]
+    assert RunLog.load(out)["t"][-1] > 0.2
