@@ -101,7 +101,7 @@ def test_reproduce_refuses_an_unknown_robot_before_running(capsys):
 def test_compile_notice_only_with_a_cold_cache(tmp_path):
     """A fresh NUMBA_CACHE_DIR is cold: one notice line; the second process finds it warm."""
     script = (
-        "from pbvs_pin.kernels import compile_notice, kernels_cached;"
+        "from pbvs_pin.compile_cache import compile_notice, kernels_cached;"
         "import sys; printed = compile_notice(sys.stdout);"
         "from pbvs_pin.sim.loop import simulate;"
         "from pbvs_pin.sim.scenario import load_scenario;"

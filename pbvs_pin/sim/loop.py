@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from pbvs_pin.compile_cache import compile_notice
 from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
 from pbvs_pin.control.step import FusedControlStep
 from pbvs_pin.exceptions import RunInterrupted
-from pbvs_pin.kernels import compile_notice
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog, RunRecorder
 from pbvs_pin.sim.obstacles import footprint_points
@@ -58,7 +58,7 @@ def simulate(
     """Run one scenario and return its log.
 
     With ``progress``, a bar labelled with the scenario, robot and law goes to stderr, preceded
-    by one line (:func:`pbvs_pin.kernels.compile_notice`) when the control kernels are not
+    by one line (:func:`pbvs_pin.compile_cache.compile_notice`) when the control kernels are not
     compiled yet.
 
     Args:
