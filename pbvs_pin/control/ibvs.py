@@ -39,8 +39,12 @@ class ClassicIbvs(PassivityController):
         object_jacobian_px: npt.ArrayLike,
         target_velocity: npt.ArrayLike,
         secondary: npt.ArrayLike,
+        upright: np.ndarray | None = None,
     ) -> ControlOutput:
-        """The classic law; ``secondary`` is ignored. Same diagnostics as the passivity law."""
+        """The classic law; ``secondary`` and ``upright`` are ignored.
+
+        Same diagnostics as the passivity law.
+        """
         error_px, jacobian_px, object_jacobian_px, target_velocity, secondary = self._inputs(
             error_px, jacobian_px, object_jacobian_px, target_velocity, secondary
         )

@@ -16,6 +16,7 @@ import numpy as np
 
 from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
 from pbvs_pin.control.step import FusedControlStep
+from pbvs_pin.control.upright import upright_row
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog, RunRecorder
 from pbvs_pin.sim.obstacles import footprint_points
@@ -179,6 +180,7 @@ def _control_step(
         model.camera, measurement, camera_jacobian, rotation.T
     )
     output = setup.controller.step(
-        xi - setup.xi_d, jacobian, object_jacobian, perception.velocity(t), secondary
-    )
+        xi - setup.xi_d, jacobian, object_jacobian, perception.velocity(t), secondary,
+        upright_row(rotation, camera_jacobian),
+    )  # fmt: skip
     return output, (jacobian, object_jacobian)
