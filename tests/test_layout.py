@@ -60,6 +60,10 @@ def test_settings_written_by_name_are_read_by_name(indices):
         joint_limits=True,
         limit_margin=0.2,
         limit_gain=2.0,
+        upright=True,
+        upright_rate=0.2,
+        camera_period=0.04,
+        loop_gain_margin=1.5,
     )
     read = layout.settings(block)
     assert read.focal == 600.0
@@ -69,14 +73,17 @@ def test_settings_written_by_name_are_read_by_name(indices):
     assert read.posture_gain == 0.0
     assert (read.joint_limits, read.limit_margin, read.limit_gain) == (True, 0.2, 2.0)
     assert read.obstacle is False
+    assert read.upright is True
+    assert (read.upright_rate, read.camera_period, read.loop_gain_margin) == (0.2, 0.04, 1.5)
 
 
 def test_step_scalars_stored_by_name_are_read_by_name(indices):
     state = np.zeros(layout.state_size(indices))
     block = layout.state_views(state, indices).scalars
     values = layout.StepScalars(
-        has_previous=1.0, valid=1.0, storage=0.3, sigma_min=0.02, damped=1.0, factor=0.5, v2=0.1
-    )
+        has_previous=1.0, valid=1.0, storage=0.3, sigma_min=0.02, damped=1.0, factor=0.5, v2=0.1,
+        loop_gain=0.7, gain_factor=1.0, sigma_phi=0.3, upright_weight=1.0, upright_angle=-0.1,
+    )  # fmt: skip
     layout.store(block, values)
     assert layout.step_scalars(block) == values
     assert block[layout.slot(layout.StepScalars, "v2")] == 0.1

@@ -43,10 +43,12 @@ class ClassicIbvs(PassivityController):
         object_jacobian_px: npt.ArrayLike,
         target_velocity: npt.ArrayLike,
         secondary: npt.ArrayLike,
+        upright: np.ndarray | None = None,
     ) -> ControlOutput:
         """The classic law with the null-space term. Same diagnostics as the passivity law.
 
-        Args: as :meth:`PassivityController.step` (``secondary`` is ``Lambda`` of eq. 16).
+        Args: as :meth:`PassivityController.step` (``secondary`` is ``Lambda`` of eq. 16);
+        ``upright`` is ignored (the baseline keeps the paper's null space).
         """
         error_px, jacobian_px, object_jacobian_px, target_velocity, secondary = self._inputs(
             error_px, jacobian_px, object_jacobian_px, target_velocity, secondary

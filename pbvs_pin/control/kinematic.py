@@ -23,6 +23,14 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
+from pbvs_pin.control.upright import (
+    LOOP_GAIN_MARGIN,
+    RESTORING_RATE,
+    Safety,
+    SafetyOutput,
+    loop_gain_factor,
+    upright_null_space,
+)
 from pbvs_pin.exceptions import GainError, ShapeError
 from pbvs_pin.linalg import all_finite, cholesky_solve, matmul, matvec, smallest_eigenvalue
 
@@ -120,6 +128,8 @@ def passivity_law(
     damping: np.ndarray,
     limits: np.ndarray,
     pseudoinverse_feedback: bool,
+    upright: np.ndarray,
+    safety: Safety,
 ) -> tuple:
     r"""Eq. (10)/(34) in controller units, saturated uniformly to the velocity limits.
 
@@ -127,7 +137,9 @@ def passivity_law(
               K_c = \mathrm{diag}\!\left(\frac{k_i}{1 + |\tilde\xi_i|}\right),\quad
               u = -\nu - J^\# J_o \hat{\dot p} + (I - J^\# J)\, k_1 \tanh(k_2 \Lambda)
 
-    and ``V1 = sum_i k_i (|e_i| - ln(1 + |e_i|))`` (eq. 7 in closed form).
+    and ``V1 = sum_i k_i (|e_i| - ln(1 + |e_i|))`` (eq. 7 in closed form). Two departures
+    from the paper (:mod:`pbvs_pin.control.upright`): ``k_i`` is scaled so that the gain per
+    camera sample stays below a margin, and the null-space term is kept from rolling the image.
 
     Args:
         error: ``xi - xi_d`` in controller units. Shape (r,).
@@ -142,10 +154,13 @@ def passivity_law(
         damping: ``[sigma_0, mu_max]`` of the pseudo-inverse. Shape (2,).
         limits: Velocity limits. Shape (n,).
         pseudoinverse_feedback: Use ``J# K_c e`` instead of ``nu`` as feedback.
+        upright: ``[phi, j_phi]`` (:func:`~pbvs_pin.control.upright.upright_row`). Shape (n + 1,).
+        safety: The departures' settings; ``camera_period = 0`` turns the loop-gain net off.
 
     Returns:
-        ``(valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor)``;
-        ``valid`` is False (and ``u`` zero) when an input is not finite.
+        ``(valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor, gains)``
+        with ``gains`` a :class:`~pbvs_pin.control.upright.SafetyOutput`; ``valid`` is False
+        (and ``u`` zero) when an input is not finite.
     """
     n = secondary.shape[0]
     zero = np.zeros(n)
@@ -156,9 +171,20 @@ def passivity_law(
         and all_finite(target_velocity)
         and all_finite(secondary)
     )
+    loop_gain, gain_factor, sigma_phi, upright_weight = np.nan, 1.0, 0.0, 0.0
     if not finite:
-        return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0
+        gains = SafetyOutput(loop_gain, gain_factor, sigma_phi, upright_weight)
+        return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0, gains
     r = error.shape[0]
+    if safety.camera_period > 0.0:  # loop-gain safety net
+        largest = 1.0
+        if not pseudoinverse_feedback:
+            largest = -smallest_eigenvalue(-matmul(jacobian, jacobian.T))
+        gain_factor, loop_gain = loop_gain_factor(
+            largest, np.max(k), safety.camera_period, safety.loop_gain_margin
+        )
+        if gain_factor < 1.0:
+            k = gain_factor * k
     kc_error = np.empty(r)
     for i in range(r):
         kc_error[i] = k[i] / (1.0 + abs(error[i])) * error[i]
@@ -171,12 +197,17 @@ def passivity_law(
     )
     feedforward = matvec(pinv, matvec(object_jacobian, target_velocity))
     null_space = shaped - matvec(pinv, matvec(jacobian, shaped))
+    if safety.upright:  # keep the image upright
+        null_space, sigma_phi, upright_weight = upright_null_space(
+            null_space, pinv, jacobian, weight_inverse, upright, damping[0], safety.upright_rate
+        )
+    gains = SafetyOutput(loop_gain, gain_factor, sigma_phi, upright_weight)
     feedback = matvec(pinv, kc_error) if pseudoinverse_feedback else nu
     u, factor = saturate(null_space - feedback - feedforward, limits)
     if not all_finite(u):
-        return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0
+        return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0, gains
     storage = storage_function(error, k)
-    return True, u, nu, feedforward, null_space, storage, sigma_min, damped, factor
+    return True, u, nu, feedforward, null_space, storage, sigma_min, damped, factor, gains
 
 
 def _positive_vector(name: str, value: npt.ArrayLike) -> np.ndarray:
@@ -204,6 +235,10 @@ class ServoGains:
         damping_threshold: Smallest singular value of ``J W^-1/2`` (controller units) below
             which the pseudo-inverse is damped.
         max_damping: Damping factor at a singular ``J``.
+        upright: Keep the null-space term from rolling the image (:mod:`.upright`).
+        upright_rate: ``k_phi``, decay rate of the upright angle in the null space [1/s].
+        camera_period: Camera sample period ``T`` of the loop-gain net [s].
+        loop_gain_margin: Largest gain per camera sample ``k T lambda_max(J J^T)``.
     """
 
     k: tuple[float, ...] = (0.15,)
@@ -214,6 +249,10 @@ class ServoGains:
     use_pseudoinverse_feedback: bool = False
     damping_threshold: float = 0.05
     max_damping: float = 0.05
+    upright: bool = True
+    upright_rate: float = RESTORING_RATE
+    camera_period: float = 1.0 / 30.0
+    loop_gain_margin: float = LOOP_GAIN_MARGIN
 
     def __post_init__(self) -> None:
         """Validate every gain (GainError names the field)."""
@@ -230,8 +269,16 @@ class ServoGains:
                 )
         else:
             _positive_vector("ServoGains.weights", weights)
-        for name in ("feature_scale", "damping_threshold", "max_damping"):
+        for name in (
+            "feature_scale", "damping_threshold", "max_damping", "camera_period",
+            "loop_gain_margin",
+        ):  # fmt: skip
             _positive_vector(f"ServoGains.{name}", getattr(self, name))
+        if not np.isfinite(self.upright_rate) or self.upright_rate < 0:
+            raise GainError(
+                f"ServoGains.upright_rate: expected >= 0 [1/s], got {self.upright_rate!r}",
+                "upright_rate",
+            )
 
     def weight_inverse(self, size: int) -> np.ndarray:
         """``W^-1``, shape (size, size).
@@ -281,6 +328,10 @@ class ControlOutput:
         saturated: The command was scaled down to respect the velocity limits.
         scale: Factor applied to the raw command (1 when not saturated).
         valid: False when an input was missing or not finite (then ``u`` is zero).
+        loop_gain: Gain per camera sample ``k T lambda_max(J J^T)`` before the net.
+        gain_limited: The loop-gain net scaled the feature gains down.
+        upright_angle: The image's upright angle ``phi`` [rad].
+        upright_weight: ``beta``, how much of the roll was removed from the null space.
     """
 
     u: np.ndarray
@@ -294,6 +345,10 @@ class ControlOutput:
     saturated: bool
     scale: float = 1.0
     valid: bool = True
+    loop_gain: float = float("nan")
+    gain_limited: bool = False
+    upright_angle: float = float("nan")
+    upright_weight: float = 0.0
 
 
 class PassivityController:
@@ -313,6 +368,12 @@ class PassivityController:
         self.k2 = gains.expand("k2", n)
         self.weight_inverse = gains.weight_inverse(n)
         self.damping = np.array([gains.damping_threshold, gains.max_damping])
+        self.safety = Safety(
+            bool(gains.upright),
+            float(gains.upright_rate),
+            float(gains.camera_period),
+            float(gains.loop_gain_margin),
+        )
         self._k: np.ndarray | None = None
 
     def pseudo_inverse(self, jacobian: np.ndarray) -> tuple[np.ndarray, float, bool]:
@@ -337,6 +398,7 @@ class PassivityController:
         object_jacobian_px: npt.ArrayLike,
         target_velocity: npt.ArrayLike,
         secondary: npt.ArrayLike,
+        upright: np.ndarray | None = None,
     ) -> ControlOutput:
         """Compute the command ``u`` of eq. (34) (:func:`passivity_law`).
 
@@ -346,6 +408,8 @@ class PassivityController:
             object_jacobian_px: ``J_o`` [px/m]. Shape (r, 3).
             target_velocity: Estimated target velocity ``phat_dot`` [m/s]. Shape (3,).
             secondary: ``Lambda`` of eq. (16). Shape (n,).
+            upright: ``[phi, j_phi]`` (:func:`~pbvs_pin.control.upright.upright_row`);
+                None leaves the null-space term as the paper has it. Shape (n + 1,).
 
         Returns:
             The command and its diagnostics. A non-finite input gives ``u = 0``,
@@ -359,19 +423,24 @@ class PassivityController:
         )
         r = error_px.shape[0]
         scale = self.gains.feature_scale
-        valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor = passivity_law(
-            error_px / scale,
-            jacobian_px / scale,
-            object_jacobian_px / scale,
-            target_velocity,
-            secondary,
-            self.feature_gains(r),
-            self.k1,
-            self.k2,
-            self.weight_inverse,
-            self.damping,
-            self.velocity_limits,
-            self.gains.use_pseudoinverse_feedback,
+        upright = self._upright(upright)
+        valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor, gains = (
+            passivity_law(
+                error_px / scale,
+                jacobian_px / scale,
+                object_jacobian_px / scale,
+                target_velocity,
+                secondary,
+                self.feature_gains(r),
+                self.k1,
+                self.k2,
+                self.weight_inverse,
+                self.damping,
+                self.velocity_limits,
+                self.gains.use_pseudoinverse_feedback,
+                upright,
+                self.safety,
+            )
         )
         if not valid:
             return self.zero_output(r)
@@ -386,7 +455,24 @@ class PassivityController:
             damped=damped,
             saturated=factor < 1.0,
             scale=factor,
+            loop_gain=gains.loop_gain,
+            gain_limited=bool(gains.gain_factor < 1.0),
+            upright_angle=upright[0],
+            upright_weight=gains.upright_weight,
         )
+
+    def _upright(self, upright: np.ndarray | None) -> np.ndarray:
+        """``[phi, j_phi]`` as a float array; None gives zeros (``j_phi = 0`` removes nothing).
+
+        Raises:
+            ShapeError: If it does not have n + 1 entries.
+        """
+        if upright is None:
+            return np.zeros(self.n + 1)
+        upright = np.asarray(upright, dtype=float)
+        if upright.shape != (self.n + 1,):
+            raise ShapeError("upright", (self.n + 1,), upright.shape)
+        return upright
 
     def feature_gains(self, r: int) -> np.ndarray:
         """``k_i`` for ``r`` features [1/s]. Shape (r,)."""

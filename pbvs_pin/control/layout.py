@@ -124,6 +124,14 @@ class Settings(NamedTuple):
     """Impedance inertia ``m`` [s]."""
     impedance_damping: float = 0.0
     """Impedance damping ``b`` [1]."""
+    upright: bool = False
+    """Keep the null-space term from rolling the image (:mod:`pbvs_pin.control.upright`)."""
+    upright_rate: float = 0.0
+    """``k_phi``, decay rate of the upright angle in the null space [1/s]."""
+    camera_period: float = 0.0
+    """Camera sample period ``T`` of the loop-gain net [s]; 0 turns the net off."""
+    loop_gain_margin: float = 1.0
+    """Largest gain per camera sample ``k T lambda_max(J J^T)`` [1]."""
 
 
 class State(NamedTuple):
@@ -172,6 +180,16 @@ class StepScalars(NamedTuple):
     """Factor the command was scaled by to respect the velocity limits (1: unsaturated)."""
     v2: float
     """``V2 = |v - u|^2 / 2`` of eq. (22) [u^2]."""
+    loop_gain: float
+    """Gain per camera sample ``k T lambda_max(J J^T)`` before the loop-gain net [1]."""
+    gain_factor: float
+    """Factor the net scaled the feature gains by (1: it did not act)."""
+    sigma_phi: float
+    """Roll the null space can produce per unit of velocity (controller units)."""
+    upright_weight: float
+    """``beta``, how much of the roll was removed from the null space [1]."""
+    upright_angle: float
+    """The image's upright angle ``phi`` [rad]."""
 
 
 SIZES = len(Sizes._fields)
@@ -271,6 +289,10 @@ def settings(block: np.ndarray) -> Settings:
         d0=block[13],
         impedance_mass=block[14],
         impedance_damping=block[15],
+        upright=block[16] > 0.0,
+        upright_rate=block[17],
+        camera_period=block[18],
+        loop_gain_margin=block[19],
     )
 
 
@@ -324,6 +346,11 @@ def step_scalars(block: np.ndarray) -> StepScalars:
         damped=block[4],
         factor=block[5],
         v2=block[6],
+        loop_gain=block[7],
+        gain_factor=block[8],
+        sigma_phi=block[9],
+        upright_weight=block[10],
+        upright_angle=block[11],
     )
 
 

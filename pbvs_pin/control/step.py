@@ -37,6 +37,7 @@ from pbvs_pin.control.secondary import (
     obstacle_force,
     posture_term,
 )
+from pbvs_pin.control.upright import Safety, upright_row
 from pbvs_pin.features import feature_jacobians
 from pbvs_pin.linalg import matmul
 from pbvs_pin.robot import arm_angles
@@ -110,9 +111,11 @@ def fused_control_step(
             secondary[0] -= impedance[0]
             secondary[n_base - 1] += impedance[1]
     # eq. (3)
+    camera_jacobian = matmul(frame_jacobian, p.selection)
     xi, jacobian, object_jacobian = feature_jacobians(
-        points, depths, index.rows, setting.focal, matmul(frame_jacobian, p.selection), rotation.T
+        points, depths, index.rows, setting.focal, camera_jacobian, rotation.T
     )
+    upright = upright_row(rotation, camera_jacobian)
     out.xi[:] = xi
     out.jacobian[:, :] = jacobian
     out.object_jacobian[:, :] = object_jacobian
@@ -121,10 +124,15 @@ def fused_control_step(
     error = (xi - p.xi_d) / scale
     jacobian /= scale
     object_jacobian /= scale
-    valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor = passivity_law(
-        error, jacobian, object_jacobian, target_velocity, secondary, p.k, p.k1, p.k2,
-        p.weight_inverse, p.pseudo_inverse_damping, p.velocity_limits,
-        setting.pseudoinverse_feedback,
+    safety = Safety(
+        setting.upright, setting.upright_rate, setting.camera_period, setting.loop_gain_margin
+    )
+    valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor, gains = (
+        passivity_law(
+            error, jacobian, object_jacobian, target_velocity, secondary, p.k, p.k1, p.k2,
+            p.weight_inverse, p.pseudo_inverse_damping, p.velocity_limits,
+            setting.pseudoinverse_feedback, upright, safety,
+        )
     )  # fmt: skip
     # eq. (20), with the low-pass filtered derivative of the command
     if layout.step_scalars(out.scalars).has_previous > 0.0 and dt > 0.0:
@@ -151,6 +159,11 @@ def fused_control_step(
             damped=1.0 if damped else 0.0,
             factor=factor,
             v2=v2,
+            loop_gain=gains.loop_gain,
+            gain_factor=gains.gain_factor,
+            sigma_phi=gains.sigma_phi,
+            upright_weight=gains.upright_weight,
+            upright_angle=upright[0],
         ),
     )
 
@@ -219,6 +232,10 @@ class FusedControlStep:
             pseudoinverse_feedback=controller.gains.use_pseudoinverse_feedback,
             derivative_time_constant=compensator.tau,
             n_base=model.n_base,
+            upright=controller.gains.upright,
+            upright_rate=controller.gains.upright_rate,
+            camera_period=controller.gains.camera_period,
+            loop_gain_margin=controller.gains.loop_gain_margin,
             **switched_on,
         )
         self.xi_d = p.xi_d
@@ -297,6 +314,8 @@ class FusedControlStep:
             nu=views.nu.copy(), feedforward=views.feedforward.copy(),
             null_space=views.null_space.copy(), min_singular_value=scalars.sigma_min,
             damped=bool(scalars.damped), saturated=scalars.factor < 1.0, scale=scalars.factor,
-            valid=bool(scalars.valid),
+            valid=bool(scalars.valid), loop_gain=scalars.loop_gain,
+            gain_limited=scalars.gain_factor < 1.0, upright_angle=scalars.upright_angle,
+            upright_weight=scalars.upright_weight,
         )  # fmt: skip
         return output, (views.jacobian.copy(), views.object_jacobian.copy())

@@ -40,15 +40,15 @@ CHANNELS = (
     "t", "xi", "xi_true", "xi_d", "u", "v_ref", "v", "q", "arm", "target", "target_estimate",
     "target_velocity", "target_velocity_estimate", "obstacle_distance", "obstacle_angle",
     "clearance", "manipulability", "storage", "storage_v2", "nu", "passivity_input",
-    "lambda_min", "gamma", "saturated", "damped", "target_lost", "valid",
-    "nu_true", "storage_true", "passivity_input_true",
+    "lambda_min", "gamma", "saturated", "damped", "target_lost", "valid", "loop_gain",
+    "gain_limited", "upright_angle", "nu_true", "storage_true", "passivity_input_true",
 )  # fmt: skip
 """Names of the arrays in a log."""
 
 RECORDED = (
     "t", "xi", "u", "v_ref", "v", "q", "target_estimate", "target_velocity_estimate",
     "obstacle_distance", "obstacle_angle", "storage", "storage_v2", "nu", "saturated", "damped",
-    "target_lost", "valid",
+    "target_lost", "valid", "loop_gain", "gain_limited", "upright_angle",
 )  # fmt: skip
 """Channels copied in the loop; :meth:`RunRecorder.finish` derives the others."""
 
@@ -226,6 +226,8 @@ class RunRecorder:
             ("storage", output.storage), ("storage_v2", v2), ("nu", output.nu),
             ("saturated", output.saturated), ("damped", output.damped),
             ("target_lost", perception.lost), ("valid", output.valid),
+            ("loop_gain", output.loop_gain), ("gain_limited", output.gain_limited),
+            ("upright_angle", output.upright_angle),
         ):  # fmt: skip
             rows[name].append(np.array(value, copy=True))
         rows["xi"].append(

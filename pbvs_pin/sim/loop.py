@@ -18,6 +18,7 @@ import numpy as np
 from pbvs_pin.compile_cache import compile_notice
 from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
 from pbvs_pin.control.step import FusedControlStep
+from pbvs_pin.control.upright import upright_row
 from pbvs_pin.exceptions import RunInterrupted
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog, RunRecorder
@@ -206,6 +207,7 @@ def _control_step(
         model.camera, measurement, camera_jacobian, rotation.T
     )
     output = setup.controller.step(
-        xi - setup.xi_d, jacobian, object_jacobian, perception.velocity(t), secondary
-    )
+        xi - setup.xi_d, jacobian, object_jacobian, perception.velocity(t), secondary,
+        upright_row(rotation, camera_jacobian),
+    )  # fmt: skip
     return output, (jacobian, object_jacobian)

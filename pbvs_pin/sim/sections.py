@@ -20,6 +20,7 @@ from typing import Any, ClassVar, Self
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import REFERENCE_ROBOT
 from pbvs_pin.control.kinematic import ServoGains
+from pbvs_pin.control.upright import LOOP_GAIN_MARGIN, RESTORING_RATE
 from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.exceptions import GainError, ScenarioError
 from pbvs_pin.robot import MobileManipulator
@@ -437,6 +438,22 @@ class ControllerSection(Section):
     )
     ibvs_gain: float = key(0.5, "lambda of the classic IBVS law [1/s].", sign=POSITIVE)
     rate: float = key(100.0, "Control rate [Hz].", sign=POSITIVE)
+    upright: bool = key(
+        True,
+        "Keep the null-space motion from rolling the image about the optical axis (a "
+        "departure from the paper; pbvs_pin.control.upright) [bool].",
+    )
+    upright_rate: float = key(
+        RESTORING_RATE,
+        "k_phi, decay rate of the image's upright angle inside the null space [1/s].",
+        sign=NON_NEGATIVE,
+    )
+    loop_gain_margin: float = key(
+        LOOP_GAIN_MARGIN,
+        "Largest feedback gain per camera sample, k T lambda_max(J J^T) in controller units; "
+        "above it the feature gains are scaled down and the log's gain_limited is set [1].",
+        sign=POSITIVE,
+    )
 
     def gains(self) -> ServoGains:
         """The servo gains as written (before they are fitted to a robot's dof)."""
@@ -447,6 +464,9 @@ class ControllerSection(Section):
             feature_scale=self.feature_scale,
             weights=self.weights,
             use_pseudoinverse_feedback=self.feedback == "pseudoinverse",
+            upright=self.upright,
+            upright_rate=self.upright_rate,
+            loop_gain_margin=self.loop_gain_margin,
         )
 
     def validate(self) -> None:

@@ -195,6 +195,11 @@ def _controller(scenario: Scenario, model: MobileManipulator) -> PassivityContro
         feature_scale=spec.feature_scale,
         weights=_weights(scenario, spec.weights, n),
         use_pseudoinverse_feedback=spec.feedback == "pseudoinverse",
+        upright=spec.upright,
+        upright_rate=spec.upright_rate,
+        # the loop-gain net's sample: a camera frame, or a control step if that is longer
+        camera_period=max(1.0 / scenario.camera.rate, 1.0 / spec.rate),
+        loop_gain_margin=spec.loop_gain_margin,
     )
     if spec.law == "ibvs":
         return ClassicIbvs(spec.ibvs_gain, model.velocity_limits, gains)
