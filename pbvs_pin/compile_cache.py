@@ -12,19 +12,6 @@ from __future__ import annotations
 import sys
 from typing import TextIO
 
-KERNEL_MODULES = (
-    "pbvs_pin.camera",
-    "pbvs_pin.robot",
-    "pbvs_pin.dynamics",
-    "pbvs_pin.features",
-    "pbvs_pin.linalg",
-    "pbvs_pin.control.kinematic",
-    "pbvs_pin.control.compensation",
-    "pbvs_pin.control.secondary",
-    "pbvs_pin.control.step",
-)
-"""Modules holding cached Numba kernels."""
-
 COMPILE_SECONDS = 40
 """Measured cold compile time of a run's kernels on a shared 2-core machine [s]."""
 

@@ -123,7 +123,7 @@ def upright_row(rotation: np.ndarray, camera_jacobian: np.ndarray) -> np.ndarray
     n = camera_jacobian.shape[1]
     out = np.zeros(n + 1)
     cx, cy, cz = rotation[2, 0], rotation[2, 1], rotation[2, 2]
-    out[0] = np.arctan2(cx, -cy)
+    out[0] = upright_angle(rotation)
     horizontal = cx * cx + cy * cy
     if horizontal < VERTICAL_VIEW:
         return out
