@@ -14,6 +14,10 @@ class PbvsError(Exception):
     """Base class of every error raised by pbvs_pin."""
 
 
+class PbvsWarning(UserWarning):
+    """A value pbvs_pin accepts but changes (e.g. a rate rounded to whole control steps)."""
+
+
 class UrdfError(PbvsError):
     """A URDF file cannot be read or does not describe what was asked for."""
 
