@@ -61,8 +61,8 @@ def _check_features(field: str, xi: tuple[float, ...], camera: object) -> None:
     u1, v1, v2 = xi
     if abs(u1) > width / 2 or abs(v1) > height / 2 or abs(v2) > height / 2:
         raise GainError(
-            f"{list(xi)} px is not visible: outside the {width} x {height} px image (expected |u| <= "
-            f"{width / 2:g} and |v| <= {height / 2:g}, centred on the principal point)",
+            f"{list(xi)} px is not visible: outside the {width} x {height} px image (expected "
+            f"|u| <= {width / 2:g} and |v| <= {height / 2:g}, centred on the principal point)",
             field,
         )
     if not v1 > v2:
