@@ -184,3 +184,25 @@ class HomeNotFound(PbvsError):
             "check camera_link and camera_pose (optical frame: z forward, x right, y down), or "
             "give the home posture explicitly"
         )
+
+
+class SweepIncomplete(PbvsError):
+    """A sweep ended with runs it could not finish (executor lost, or interrupted).
+
+    Their rows are not written, so that running the same command again runs them.
+    """
+
+    def __init__(self, out: str, unfinished: int, total: int, reason: str) -> None:
+        """Name the folder, the count and why.
+
+        Args:
+            out: The sweep's output folder.
+            unfinished: Runs that did not finish.
+            total: Runs of the sweep.
+            reason: What stopped them (one line).
+        """
+        self.unfinished = unfinished
+        super().__init__(
+            f"{out}: {unfinished} of {total} runs did not finish ({reason}); the finished runs "
+            "are saved: run the same command again to resume"
+        )

@@ -66,7 +66,7 @@ def check_tree(root: etree._Element, label: str) -> None:
                 raise UrdfError(
                     label,
                     f"joint {name!r}: {end} link {ends[end]!r} is not a link of the file "
-                    f"(expected <{end} link=\"...\"/> naming one of its links)",
+                    f'(expected <{end} link="..."/> naming one of its links)',
                 )
         child = ends["child"]
         if child in parent_of:
@@ -95,7 +95,7 @@ def _unique(names: list[str | None], kind: str, label: str) -> None:
     seen: set[str] = set()
     for name in names:
         if not name:
-            raise UrdfError(label, f"a <{kind}> has no name; expected name=\"...\"")
+            raise UrdfError(label, f'a <{kind}> has no name; expected name="..."')
         if name in seen:
             raise UrdfError(label, f"two {kind}s are named {name!r}; expected unique names")
         seen.add(name)
