@@ -183,6 +183,9 @@ def _typed(name: str, value: Any, default: Any, matrix: bool = False) -> Any:
         ):
             kind = "list of finite numbers" + (" (or a list of such lists)" if matrix else "")
             raise GainError(f"expected a {kind}, got {value!r}", name)
+        rows = {len(x) if isinstance(x, list | tuple) else None for x in value}
+        if len(rows) > 1:
+            raise GainError(f"expected numbers or rows of equal length, got {value!r}", name)
         return tuple(tuple(x) if isinstance(x, list | tuple) else x for x in value)
     if isinstance(default, bool):
         if not isinstance(value, bool):
