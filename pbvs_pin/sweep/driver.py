@@ -75,7 +75,7 @@ def run_sweep(
         probe_scheduler(scheduler)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    with exclusive(out), _terminate_as_interrupt():
+    with exclusive(out), _signals_as_stop() as stop:
         check_folder(sweep, out, force)
         table = ResultTable(out / TABLE)
         if retry_failed:
@@ -104,12 +104,14 @@ def run_sweep(
                 )
             )
             try:
-                for row, timing in execute(make_executor, pending, window, unfinished):
+                for row, timing in execute(make_executor, pending, window, unfinished, stop):
                     table.append(row)
                     append_timing(out / TIMINGS, timing)
                     bar.update(1)
                     if row["status"] != "ok":
                         bar.write(f"{row['run_id']} failed: {format_cell(row['reason'])[:200]}")
+                if stop.is_set():
+                    raise KeyboardInterrupt
             except KeyboardInterrupt:
                 missing = sum(task.run_id not in table.rows for task in tasks)
                 raise SweepIncomplete(str(out), missing, len(tasks), "interrupted") from None
@@ -125,21 +127,24 @@ def run_sweep(
 
 
 @contextlib.contextmanager
-def _terminate_as_interrupt() -> Iterator[None]:
-    """Turn SIGTERM and SIGINT into KeyboardInterrupt, so that the workers are stopped.
+def _signals_as_stop() -> Iterator[threading.Event]:
+    """An event that SIGTERM and SIGINT set; :func:`execute` stops at its next step.
 
-    SIGINT is handled explicitly too, because a shell starts background jobs with it ignored.
+    The sweep stops between steps, never inside one (a worker half started by the fork
+    server would print a traceback). SIGINT is handled explicitly too, because a shell starts
+    background jobs with it ignored.
     """
+    stop = threading.Event()
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield stop
         return
 
     def interrupt(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt
+        stop.set()
 
     previous = {sig: signal.signal(sig, interrupt) for sig in (signal.SIGTERM, signal.SIGINT)}
     try:
-        yield
+        yield stop
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

@@ -48,6 +48,9 @@ RETRIES_AFTER_CRASH = 1
 PROBE_TIMEOUT = 5.0
 """Seconds a scheduler address has to accept a connection and send Dask's greeting."""
 
+STOP_POLL = 0.2
+"""Seconds between the sweep's checks of its stop event (SIGTERM, SIGINT)."""
+
 PARENT_POLL = 1.0
 """Seconds between a local worker's checks that the sweep's process is alive."""
 
@@ -109,16 +112,26 @@ def watch_parent(pid: int) -> None:
     """In a worker: exit as soon as process ``pid`` (the sweep) is gone (a daemon thread)."""
 
     def watch() -> None:
-        while True:
+        while _alive(pid):
             time.sleep(PARENT_POLL)
-            try:
-                os.kill(pid, 0)
-            except ProcessLookupError:
-                os._exit(1)
-            except PermissionError:  # alive, owned by someone else (cannot happen here)
-                pass
+        os._exit(1)
 
     threading.Thread(target=watch, name="watch-sweep", daemon=True).start()
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, dead but not yet reaped, does not)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by another user
+        return True
+    try:
+        with open(f"/proc/{pid}/stat") as handle:
+            return handle.read().rpartition(")")[2].split()[0] != "Z"
+    except OSError:  # no /proc (not Linux): kill() said it exists
+        return True
 
 
 def probe_scheduler(address: str, timeout: float = PROBE_TIMEOUT) -> None:
@@ -207,6 +220,7 @@ def execute(
     tasks: list[RunTask],
     window: int,
     unfinished: list[tuple[RunTask, str]],
+    stop: threading.Event | None = None,
 ) -> Iterator[tuple[dict[str, Any], dict[str, Any]]]:
     """Run tasks with at most ``window`` in flight; yield each result as it completes.
 
@@ -214,7 +228,8 @@ def execute(
     :data:`RETRIES_AFTER_CRASH` times. A run the executor could not finish (crashed again,
     or any executor error such as a lost Dask scheduler) is appended to ``unfinished`` with
     the reason, not yielded; after the first such failure nothing new is submitted.
-    An interruption (KeyboardInterrupt) terminates the local workers.
+    When ``stop`` is set (checked every :data:`STOP_POLL` seconds) or on KeyboardInterrupt,
+    the local workers are terminated and KeyboardInterrupt is raised.
     """
     queue = deque(tasks)
     crashes: dict[str, int] = {}
@@ -227,7 +242,9 @@ def execute(
                 in_flight[executor.submit(run_one, task)] = task
             if not in_flight:
                 break
-            done, _ = wait(in_flight, return_when=FIRST_COMPLETED)
+            done, _ = wait(in_flight, timeout=STOP_POLL, return_when=FIRST_COMPLETED)
+            if stop is not None and stop.is_set():
+                raise KeyboardInterrupt
             broken = False
             for future in done:
                 task = in_flight.pop(future)
