@@ -25,15 +25,37 @@ at fault, which the scenario's parser turns into a ScenarioError naming the file
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from pbvs_pin.exceptions import GainError, PbvsWarning
-from pbvs_pin.sim.obstacles import footprint_points
+from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle, footprint_points
+from pbvs_pin.sim.sections import (
+    CameraSection,
+    ControllerSection,
+    LaserSection,
+    PlatformSection,
+    SimulationSection,
+    TargetSection,
+)
 
-if TYPE_CHECKING:
-    from pbvs_pin.sim.scenario import Scenario
+
+class Scenario(Protocol):
+    """What these checks read of a :class:`pbvs_pin.sim.scenario.Scenario`.
+
+    Declared here, not imported, because the scenario's own validation calls these checks.
+    """
+
+    source: str
+    duration: float
+    camera: CameraSection
+    target: TargetSection
+    controller: ControllerSection
+    laser: LaserSection
+    platform: PlatformSection
+    simulation: SimulationSection
+    obstacles: tuple[CircleObstacle | BoxObstacle, ...]
 
 RATE_TOLERANCE = 1e-6
 """Relative distance to a whole number of steps below which a period counts as a multiple."""
@@ -55,7 +77,7 @@ def check_consistency(scenario: Scenario) -> None:
     _check_obstacles(scenario)
 
 
-def _check_features(field: str, xi: tuple[float, ...], camera: object) -> None:
+def _check_features(field: str, xi: tuple[float, ...], camera: CameraSection) -> None:
     """``xi = [u1, v1, v2]`` [px] inside a ``width x height`` image and ``v1 > v2``."""
     width, height = camera.width, camera.height
     u1, v1, v2 = xi
