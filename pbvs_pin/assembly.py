@@ -31,6 +31,7 @@ from pbvs_pin.exceptions import (
     UrdfError,
 )
 from pbvs_pin.shipped import shipped_urdf
+from pbvs_pin.urdf_checks import axisless_joints, check_physics, check_tree
 
 _DRIVE_ADVICE = (
     "The drive needs wheel_radius [m], track [m] (distance between the left and right wheels) "
@@ -53,11 +54,13 @@ class UrdfSource:
         robot: The yourdfpy description (edited in place by the assembly functions).
         label: File path or name it was loaded from, used in error messages.
         package_dirs: Folders against which ``package://`` mesh URIs resolve.
+        axisless: Joints written without ``<axis>`` (yourdfpy fills in URDF's default x).
     """
 
     robot: yourdfpy.Robot
     label: str
     package_dirs: tuple[str, ...]
+    axisless: frozenset[str] = frozenset()
 
     def link_names(self) -> list[str]:
         """Names of all links."""
@@ -135,14 +138,20 @@ def load_urdf(source: str | Path) -> UrdfSource:
         The description with mesh paths made absolute.
 
     Raises:
-        UrdfError: If the file is missing, is not well-formed XML, or is not a URDF.
+        UrdfError: If the file is missing, is not well-formed XML, is not a URDF, its links
+            do not form a tree, or its masses, inertias or limits are impossible
+            (:mod:`pbvs_pin.urdf_checks`).
         RobotNotFound: If the name is neither a file nor a known robot.
     """
     path, package_dirs = _resolve(source)
     try:  # yourdfpy silently recovers from broken XML: parse strictly first
-        etree.parse(str(path), etree.XMLParser(recover=False))
+        tree = etree.parse(str(path), etree.XMLParser(recover=False)).getroot()
     except etree.XMLSyntaxError as err:
         raise UrdfError(str(path), f"not well-formed XML ({err})") from err
+    except OSError as err:
+        raise UrdfError(str(path), f"cannot be read ({err})") from err
+    if tree.tag == "robot":
+        check_tree(tree, str(path))
     try:
         urdf = yourdfpy.URDF.load(
             str(path),
@@ -156,8 +165,10 @@ def load_urdf(source: str | Path) -> UrdfSource:
     if urdf.robot is None or not urdf.robot.links:
         raise UrdfError(str(path), "not a valid URDF (expected <robot> with at least one <link>)")
     robot = copy.deepcopy(urdf.robot)
+    check_physics(robot, str(path))
     _absolute_mesh_paths(robot, path.resolve().parent)
-    return UrdfSource(robot, str(path) if path.exists() else str(source), package_dirs)
+    label = str(path) if path.exists() else str(source)
+    return UrdfSource(robot, label, package_dirs, axisless_joints(tree))
 
 
 def _fixed_chain_poses(robot: yourdfpy.Robot, root: str) -> dict[str, np.ndarray]:
@@ -233,6 +244,12 @@ def find_drive_axle(source: UrdfSource) -> DriveAxle:
         if joint.type not in ("continuous", "revolute") or joint.parent not in poses:
             continue
         pose = poses[joint.parent] @ _origin(joint)
+        if joint.name in source.axisless and "wheel" in f"{joint.name} {joint.child}".lower():
+            raise DriveAxleNotFound(
+                source.label,
+                f"wheel joint {joint.name!r} has no <axis>: URDF's default x axis would make "
+                'the wheel roll sideways; expected e.g. <axis xyz="0 1 0"/>',
+            )
         axis = pose[:3, :3] @ np.asarray(joint.axis if joint.axis is not None else [1, 0, 0])
         if abs(axis[1]) / np.linalg.norm(axis) >= _AXIS_TOLERANCE:
             wheels.append((joint, pose[:3, 3]))

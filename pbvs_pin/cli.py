@@ -190,6 +190,7 @@ def _sweep(args: argparse.Namespace) -> None:
         args.workers,
         max_runs=args.max_runs,
         retry_failed=args.retry_failed,
+        force=args.force,
     )
     print(f"results table written to {table}")
 
@@ -298,6 +299,11 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--workers", type=int, help="local worker processes")
     sweep.add_argument("--max-runs", type=int, help="stop after this many new runs")
     sweep.add_argument("--retry-failed", action="store_true", help="run failed rows again")
+    sweep.add_argument(
+        "--force",
+        action="store_true",
+        help="adopt a folder with results whose sweep.json is missing or unreadable",
+    )
     sweep.set_defaults(handler=_sweep)
     return parser
 

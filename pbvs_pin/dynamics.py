@@ -69,10 +69,10 @@ def rigid_body_terms(robot: MobileManipulator, q: npt.ArrayLike, v: npt.ArrayLik
         Terms in SI units (kg, kg m^2, N, N m).
     """
     model, data, selection = robot.model, robot.data, robot.selection
-    q = np.asarray(q, dtype=float)
+    q, v = robot.check_configuration(q), robot.check_velocity(v)
     mass = pin.crba(model, data, q)
     mass = np.triu(mass) + np.triu(mass, 1).T
-    coriolis = pin.computeCoriolisMatrix(model, data, q, selection @ np.asarray(v, dtype=float))
+    coriolis = pin.computeCoriolisMatrix(model, data, q, selection @ v)
     gravity = pin.computeGeneralizedGravity(model, data, q)
     return DynamicTerms(
         selection.T @ mass @ selection, selection.T @ coriolis @ selection, selection.T @ gravity

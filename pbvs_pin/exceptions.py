@@ -14,6 +14,10 @@ class PbvsError(Exception):
     """Base class of every error raised by pbvs_pin."""
 
 
+class PbvsWarning(UserWarning):
+    """A value pbvs_pin accepts but changes (e.g. a rate rounded to whole control steps)."""
+
+
 class UrdfError(PbvsError):
     """A URDF file cannot be read or does not describe what was asked for."""
 
@@ -232,3 +236,25 @@ class RunInterrupted(KeyboardInterrupt):
         self.log = log
         self.saved = saved
         super().__init__("run interrupted")
+
+
+class SweepIncomplete(PbvsError):
+    """A sweep ended with runs it could not finish (executor lost, or interrupted).
+
+    Their rows are not written, so that running the same command again runs them.
+    """
+
+    def __init__(self, out: str, unfinished: int, total: int, reason: str) -> None:
+        """Name the folder, the count and why.
+
+        Args:
+            out: The sweep's output folder.
+            unfinished: Runs that did not finish.
+            total: Runs of the sweep.
+            reason: What stopped them (one line).
+        """
+        self.unfinished = unfinished
+        super().__init__(
+            f"{out}: {unfinished} of {total} runs did not finish ({reason}); the finished runs "
+            "are saved: run the same command again to resume"
+        )

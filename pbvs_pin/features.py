@@ -224,6 +224,10 @@ class FeatureSet(abc.ABC):
         """
         if len(points_world) != self.n_points:
             raise ShapeError("points_world", (self.n_points, 3), (len(points_world), 3))
+        shapes = [np.shape(point) for point in points_world]
+        if len(set(shapes)) > 1:  # ragged: name the first point that is not a 3-vector
+            i = next(i for i, shape in enumerate(shapes) if shape != (3,))
+            raise ShapeError(f"points_world[{i}]", (3,), shapes[i])
         measurement = self.measure(robot, q, np.array(points_world, dtype=float))
         pose = robot.camera_pose(q)
         return self.jacobians_from_measurement(

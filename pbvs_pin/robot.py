@@ -34,7 +34,11 @@ from pbvs_pin.assembly import (
 from pbvs_pin.base import BaseAdapter, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.exceptions import FrameNotFound, GainError, NoMovableJoint, UrdfError
+from pbvs_pin.urdf_checks import check_meshes
 from pbvs_pin.validation import as_array, as_se3
+
+UNIT_TOLERANCE = 1e-6
+"""Largest | |(cos, sin)| - 1 | of an angle stored as a pair in a configuration."""
 
 DEFAULT_JOINT_SPEED = 1.0
 """Velocity limit [rad/s or m/s] used for a joint whose URDF gives none."""
@@ -65,7 +69,7 @@ def _build_model(xml: str, label: str, root: pin.JointModel | None) -> pin.Model
             return pin.buildModelFromXML(xml)
         return pin.buildModelFromXML(xml, root)
     except (RuntimeError, ValueError) as err:
-        raise UrdfError(label, f"Pinocchio cannot build a model: {err}") from err
+        raise UrdfError(label, f"Pinocchio cannot build a model: {_one_line(err)}") from err
 
 
 def _build_visuals(
@@ -77,7 +81,12 @@ def _build_visuals(
             model, xml, pin.GeometryType.VISUAL, package_dirs=list(package_dirs)
         )
     except (RuntimeError, ValueError) as err:
-        raise UrdfError(label, f"cannot load visual geometry: {err}") from err
+        raise UrdfError(label, f"cannot load visual geometry: {_one_line(err)}") from err
+
+
+def _one_line(err: Exception) -> str:
+    """An exception's (C++, multi-line) message on one line."""
+    return " ".join(str(err).split())
 
 
 @njit(cache=True)
@@ -259,6 +268,7 @@ class MobileManipulator:
         adapter = _base_adapter(base, source)
         xml = to_xml(source)
         model = _build_model(xml, source.label, adapter.root_joint())
+        check_meshes(source.robot, source.label)
         visuals = _build_visuals(model, xml, source.label, source.package_dirs)
         robot = cls(
             model, visuals, adapter, camera_frame, camera or CameraIntrinsics(), source.label
@@ -351,8 +361,26 @@ class MobileManipulator:
         return self.with_arm_positions(self.neutral(), self.home_arm)
 
     def check_configuration(self, q: npt.ArrayLike) -> np.ndarray:
-        """``q`` as a finite float array of shape (nq,), or a ShapeError/NonFiniteValue."""
-        return as_array("q", q, (self.model.nq,))
+        """``q`` as a finite float array of shape (nq,) whose (cos, sin) pairs are unit.
+
+        A planar root joint and each continuous joint store an angle as ``(cos, sin)``; a pair
+        whose norm is off 1 by more than :data:`UNIT_TOLERANCE` is no angle and is refused
+        (integration keeps the pairs unit to about 1e-15).
+
+        Raises:
+            ShapeError: If the shape is not (nq,).
+            NonFiniteValue: If an entry is NaN or infinite.
+            GainError: If a (cos, sin) pair is not unit, naming ``q``.
+        """
+        q = as_array("q", q, (self.model.nq,))
+        if not pin.isNormalized(self.model, q, UNIT_TOLERANCE):
+            raise GainError(
+                f"q: a (cos, sin) pair of {q.round(6).tolist()} is not unit (tolerance "
+                f"{UNIT_TOLERANCE:g}); expected the angles of the planar and continuous joints "
+                "as (cos, sin), e.g. from robot.neutral() or robot.with_arm_positions()",
+                field="q",
+            )
+        return q
 
     def check_velocity(self, v: npt.ArrayLike, name: str = "v") -> np.ndarray:
         """Actuated velocity as a finite float array of shape (n,)."""
@@ -368,9 +396,13 @@ class MobileManipulator:
 
         Returns:
             ``pin.integrate(q, S v dt)``. Shape (nq,).
+
+        Raises:
+            NonFiniteValue: If ``dt`` (or an entry of ``q`` or ``v``) is not finite.
         """
         q = self.check_configuration(q)
         v = self.check_velocity(v)
+        as_array("dt", dt, ())
         return pin.integrate(self.model, q, self.selection @ (v * dt))
 
     def arm_positions(self, q: npt.ArrayLike) -> np.ndarray:
@@ -381,9 +413,15 @@ class MobileManipulator:
         return arm_angles(np.asarray(q, dtype=float), self.arm_q_indices, self.arm_continuous)
 
     def with_arm_positions(self, q: npt.ArrayLike, arm: npt.ArrayLike) -> np.ndarray:
-        """Copy of ``q`` with the arm joints set to ``arm`` [rad or m]. Shape (nq,)."""
-        q = np.array(q, dtype=float)
-        for name, value in zip(self.arm_joint_names, np.asarray(arm, dtype=float), strict=True):
+        """Copy of ``q`` with the arm joints set to ``arm`` [rad or m]. Shape (nq,).
+
+        Raises:
+            ShapeError: If ``q`` is not (nq,) or ``arm`` not (n_arm,).
+            NonFiniteValue: If an entry is not finite.
+        """
+        q = as_array("q", q, (self.model.nq,))
+        arm = as_array("arm", arm, (self.n_arm,))
+        for name, value in zip(self.arm_joint_names, arm, strict=True):
             joint = self.model.joints[self.model.getJointId(name)]
             if joint.nq == 2:
                 q[joint.idx_q : joint.idx_q + 2] = np.cos(value), np.sin(value)

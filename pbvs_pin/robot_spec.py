@@ -137,7 +137,7 @@ def build_robot_from(
             problem += "; or give the drive: add wheel_radius, track and wheel_speed_limit"
         raise ScenarioError(spec.source, f"robot.{field}", problem) from err
     if spec.home is not None:
-        robot.home_arm = _home(spec, robot)
+        robot.home_arm = arm_posture(spec.source, "robot.home", robot, spec.home)
     return robot
 
 
@@ -176,24 +176,36 @@ def _field_at_fault(spec: RobotSection, err: PbvsError) -> str:
     return "arm" if arm else "base"
 
 
-def _home(spec: RobotSection, robot: MobileManipulator) -> np.ndarray:
-    """The ``home`` key as an arm posture, checked for length and joint limits."""
-    home = np.asarray(spec.home, dtype=float)
-    if home.shape != (robot.n_arm,):
+def arm_posture(
+    source: str, field: str, robot: MobileManipulator, values: tuple[float, ...]
+) -> np.ndarray:
+    """Arm joint positions [rad or m] given by a key, checked for length and joint limits.
+
+    Args:
+        source: File the key was read from.
+        field: Dotted name of the key (``"robot.home"``, ``"robot.initial_arm"``).
+        robot: The robot the posture is for.
+        values: One position per arm joint.
+
+    Raises:
+        ScenarioError: If the length is not ``robot.n_arm`` or a value is off its limits.
+    """
+    posture = np.asarray(values, dtype=float)
+    if posture.shape != (robot.n_arm,):
         raise ScenarioError(
-            spec.source,
-            "robot.home",
+            source,
+            field,
             f"expected {robot.n_arm} values for this robot ({', '.join(robot.arm_joint_names)}),"
-            f" got {home.size}",
+            f" got {posture.size}",
         )
     lower, upper = robot.arm_position_limits()
     outside = [
-        name
-        for name, value, low, high in zip(robot.arm_joint_names, home, lower, upper, strict=True)
+        f"{name} = {value:g} not in [{low:g}, {high:g}]"
+        for name, value, low, high in zip(
+            robot.arm_joint_names, posture, lower, upper, strict=True
+        )
         if not low <= value <= high
     ]
     if outside:
-        raise ScenarioError(
-            spec.source, "robot.home", f"outside the joint limits of {', '.join(outside)}"
-        )
-    return home
+        raise ScenarioError(source, field, f"outside the joint limits: {'; '.join(outside)}")
+    return posture

@@ -51,6 +51,10 @@ def positive_number(name: str, value: object) -> float:
     return number
 
 
+ROTATION_TOLERANCE = 1e-6
+"""Largest entry of ``|R^T R - I|`` of a rotation given as a matrix."""
+
+
 def as_se3(name: str, pose: pin.SE3 | npt.ArrayLike) -> pin.SE3:
     """Convert a pose to ``pinocchio.SE3``.
 
@@ -65,8 +69,19 @@ def as_se3(name: str, pose: pin.SE3 | npt.ArrayLike) -> pin.SE3:
     Raises:
         ShapeError: If a vector is not of length 6.
         NonFiniteValue: If an entry is NaN or infinite.
+        GainError: If an SE3's rotation is not orthonormal with determinant +1 (within
+            :data:`ROTATION_TOLERANCE`); it is refused, never silently altered.
     """
     if isinstance(pose, pin.SE3):
+        rotation = as_array(f"{name}.rotation", pose.rotation, (3, 3))
+        as_array(f"{name}.translation", pose.translation, (3,))
+        error = np.abs(rotation.T @ rotation - np.eye(3)).max()
+        if error > ROTATION_TOLERANCE or np.linalg.det(rotation) < 0:
+            raise GainError(
+                f"{name}: the rotation is not a rotation matrix (|R^T R - I| = {error:.3g}, "
+                f"det R = {np.linalg.det(rotation):.3g}); expected R^T R = I and det R = +1",
+                field=name,
+            )
         return pin.SE3(pose)
     xyz_rpy = as_array(name, pose, (6,))
     return pin.SE3(pin.rpy.rpyToMatrix(xyz_rpy[3:]), xyz_rpy[:3])

@@ -168,7 +168,7 @@ def test_invalid_toml_syntax(tmp_path):
         ("\n[estimator]\nalpha = 2.0\n", "estimator.alpha"),
         ("\n[estimator]\nbeta = 3.5\n", "estimator.beta"),
         ("\n[controller]\nweights = [-1.0]\n", "controller.weights"),
-        ("\n[camera]\nfocal_px = inf\n", "camera"),
+        ("\n[camera]\nfocal_px = inf\n", "camera.focal_px"),
     ],
 )  # fmt: skip
 def test_invalid_field_names_file_and_field(tmp_path, extra, field):
@@ -210,10 +210,10 @@ def test_invalid_for_the_robot_names_file_and_field(tmp_path, extra, field):
     "xi0", [[500.0, 20.0, -100.0], [0.0, 320.0, 250.0], [-150.0, -400.0, -450.0]]
 )
 def test_target_not_visible_at_start(tmp_path, xi0):
-    """xi0 outside the 628 x 582 image (|u| > 314 or |v| > 291 px)."""
+    """xi0 outside the 628 x 582 image (|u| > 314 or |v| > 291 px), refused when read."""
     path = _write(tmp_path, BASE.replace("[-150.0, 20.0, -100.0]", str(xi0)))
     with pytest.raises(ScenarioError, match="not visible") as err:
-        build(load_scenario(path))
+        load_scenario(path)
     _expect(err, path, "target.xi0")
 
 

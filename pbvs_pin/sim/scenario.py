@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from pbvs_pin.exceptions import GainError, ScenarioError
+from pbvs_pin.sim.consistency import check_consistency
 from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle
 from pbvs_pin.sim.sections import (
     SECTIONS,
@@ -90,9 +91,15 @@ class Scenario(Section):
         return parse_scenario(dict(table), source)
 
     def validate(self) -> None:
-        """Name the scenario after its file when it has no name."""
+        """Name the scenario after its file when it has no name; check across tables.
+
+        Raises:
+            GainError: If values of different tables contradict each other
+                (:func:`pbvs_pin.sim.consistency.check_consistency`), naming the dotted field.
+        """
         if not self.name:
             object.__setattr__(self, "name", Path(self.source).stem)
+        check_consistency(self)
 
     def error(self, field: str, problem: str) -> ScenarioError:
         """A ScenarioError for this file."""
@@ -163,9 +170,20 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
             )
         path = shipped
     try:
-        raw = tomllib.loads(path.read_text())
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as err:
+        raise ScenarioError(str(path), "", f"not UTF-8 text (expected a TOML file): {err}") from err
+    except OSError as err:
+        raise ScenarioError(str(path), "", f"cannot be read: {err.strerror}") from err
     except tomllib.TOMLDecodeError as err:
         raise ScenarioError(str(path), "", f"not valid TOML: {err}") from err
+    if not raw:
+        raise ScenarioError(
+            str(path),
+            "",
+            "empty scenario (no key, no table); expected at least a [robot] or [target] table, "
+            "or name a shipped scenario: " + ", ".join(shipped_scenarios()),
+        )
     return parse_scenario(raw, str(path))
 
 

@@ -11,6 +11,7 @@ names the file and the dotted field.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import Field, dataclass, field, fields, replace
 from enum import Enum
@@ -43,13 +44,15 @@ def key(
     choices: tuple[str, ...] = (),
     length: int | None = None,
     optional: type | None = None,
+    matrix: bool = False,
 ) -> Any:
     """A scenario key: a dataclass field with its default, documentation and check.
 
     The default also fixes the key's type: a string, a boolean, a float (an integer is
-    accepted and converted), an integer (any number is kept as written), or a tuple of numbers
-    (a TOML array, possibly of arrays; ``None`` as default means "array or absent", or
-    "``optional`` or absent" when ``optional`` gives a scalar type).
+    accepted and converted), an integer (a float with an integral value is converted, 1.5 is
+    refused), or a tuple of numbers (a TOML array; of arrays only when ``matrix``; ``None`` as
+    default means "array or absent", or "``optional`` or absent" when ``optional`` gives a
+    scalar type). Every number must be finite.
 
     Args:
         default: Value when the file does not give the key.
@@ -59,9 +62,11 @@ def key(
         length: Required number of entries of an array.
         optional: With a ``None`` default, the type of the value when given (``float``,
             ``str``); arrays when not given.
+        matrix: Whether the array may also be an array of arrays (a matrix).
     """
     metadata = {
-        "doc": doc, "sign": sign, "choices": choices, "length": length, "optional": optional
+        "doc": doc, "sign": sign, "choices": choices, "length": length, "optional": optional,
+        "matrix": matrix,
     }  # fmt: skip
     return field(default=default, metadata=metadata)
 
@@ -134,8 +139,8 @@ def _plain(value: Any) -> Any:
 
 
 def is_number(x: Any) -> bool:
-    """A real number, not a boolean, not NaN."""
-    return isinstance(x, int | float) and not isinstance(x, bool) and x == x
+    """A finite real number, not a boolean (NaN and infinity are not)."""
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
 
 
 def _numbers(value: Any) -> list:
@@ -151,7 +156,7 @@ def _checked(spec: Field, value: Any) -> Any:
     default = spec.default
     if default is None and value is not None and meta["optional"] is not None:
         default = meta["optional"]()
-    value = _typed(spec.name, value, default)
+    value = _typed(spec.name, value, default, meta.get("matrix", False))
     if value is None:
         return value
     if meta["choices"] and value not in meta["choices"]:
@@ -167,16 +172,21 @@ def _checked(spec: Field, value: Any) -> Any:
     return value
 
 
-def _typed(name: str, value: Any, default: Any) -> Any:
+def _typed(name: str, value: Any, default: Any, matrix: bool = False) -> Any:
     """Coerce ``value`` to the default's type (int -> float allowed), or a GainError."""
     if default is None or isinstance(default, tuple):
         if default is None and value is None:
             return None
         if not isinstance(value, list | tuple) or not all(
-            is_number(x) or (isinstance(x, list | tuple) and all(is_number(y) for y in x))
+            is_number(x)
+            or (matrix and isinstance(x, list | tuple) and all(is_number(y) for y in x))
             for x in value
         ):
-            raise GainError(f"expected a list of numbers, got {value!r}", name)
+            kind = "list of finite numbers" + (" (or a list of such lists)" if matrix else "")
+            raise GainError(f"expected a {kind}, got {value!r}", name)
+        rows = {len(x) if isinstance(x, list | tuple) else None for x in value}
+        if len(rows) > 1:
+            raise GainError(f"expected numbers or rows of equal length, got {value!r}", name)
         return tuple(tuple(x) if isinstance(x, list | tuple) else x for x in value)
     if isinstance(default, bool):
         if not isinstance(value, bool):
@@ -184,8 +194,12 @@ def _typed(name: str, value: Any, default: Any) -> Any:
         return value
     if isinstance(default, int | float):
         if not is_number(value):
-            raise GainError(f"expected a number, got {value!r}", name)
-        return float(value) if isinstance(default, float) else value
+            raise GainError(f"expected a finite number, got {value!r}", name)
+        if isinstance(default, float):
+            return float(value)
+        if isinstance(value, float) and not value.is_integer():
+            raise GainError(f"expected an integer, got {value!r}", name)
+        return int(value)
     if not isinstance(value, str):
         raise GainError(f"expected a string, got {value!r}", name)
     return value
@@ -326,6 +340,13 @@ class ModelErrorSection(Section):
     mass_scale: float = key(1.0, "Factor on the model's masses and inertias.", sign=POSITIVE)
 
 
+MAX_IMAGE_PX = 100_000
+"""Largest image width or height [px] a ``[camera]`` table accepts."""
+
+MIN_FIELD_OF_VIEW_DEG = 0.1
+"""Smallest field of view [deg] (across the larger image side) a ``[camera]`` table accepts."""
+
+
 @dataclass(frozen=True)
 class CameraSection(Section):
     """``[camera]``: intrinsics and the image stream."""
@@ -345,7 +366,24 @@ class CameraSection(Section):
         return CameraIntrinsics(self.focal_px, self.width, self.height)
 
     def validate(self) -> None:
-        """The intrinsics must be valid (GainError otherwise)."""
+        """Valid, plausible intrinsics (GainError naming the key).
+
+        The image is at most :data:`MAX_IMAGE_PX` px a side and the field of view at least
+        :data:`MIN_FIELD_OF_VIEW_DEG` across the larger side.
+        """
+        for name in ("width", "height"):
+            if getattr(self, name) > MAX_IMAGE_PX:
+                raise GainError(
+                    f"expected at most {MAX_IMAGE_PX} px, got {getattr(self, name)}", name
+                )
+        half_view = math.radians(MIN_FIELD_OF_VIEW_DEG) / 2
+        largest = max(self.width, self.height) / (2 * math.tan(half_view))
+        if self.focal_px > largest:
+            raise GainError(
+                f"expected at most {largest:.4g} px (a field of view of at least "
+                f"{MIN_FIELD_OF_VIEW_DEG} deg for this image), got {self.focal_px:g}",
+                "focal_px",
+            )
         self.intrinsics()
 
 
@@ -430,6 +468,7 @@ class ControllerSection(Section):
         (1.0,),
         "W: its positive diagonal (1 or n values) or the full n x n symmetric positive "
         "definite matrix.",
+        matrix=True,
     )
     feedback: str = key(
         "transpose",
@@ -533,7 +572,7 @@ class SimulationSection(Section):
     TABLE: ClassVar[str] = "simulation"
     plant_dt: float = key(0.001, "Integration step of the plant [s].", sign=POSITIVE)
     log_rate: float = key(50.0, "Samples per second in the log [Hz].", sign=POSITIVE)
-    seed: int = key(0, "Seed of the camera's pixel-noise generator.")
+    seed: int = key(0, "Seed of the camera's pixel-noise generator.", sign=NON_NEGATIVE)
 
 
 SECTIONS: tuple[type[Section], ...] = (

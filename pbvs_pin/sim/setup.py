@@ -29,6 +29,7 @@ from pbvs_pin.features import TwoSphereFeatures
 from pbvs_pin.manipulability import max_manipulability_posture
 from pbvs_pin.plant import Plant
 from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.robot_spec import arm_posture
 from pbvs_pin.servo import ServoModel
 from pbvs_pin.sim.obstacles import Laser, Obstacle
 from pbvs_pin.sim.scenario import Scenario
@@ -167,11 +168,9 @@ def _start(scenario: Scenario, robot: MobileManipulator) -> np.ndarray:
     arm = scenario.robot.initial_arm
     if arm is None:
         return q0
-    if len(arm) != robot.n_arm:
-        raise scenario.error(
-            "robot.initial_arm", f"expected {robot.n_arm} values for this robot, got {len(arm)}"
-        )
-    return robot.with_arm_positions(q0, arm)
+    return robot.with_arm_positions(
+        q0, arm_posture(scenario.source, "robot.initial_arm", robot, arm)
+    )
 
 
 def _vector(scenario: Scenario, field: str, values: tuple, n: int) -> np.ndarray:

@@ -14,6 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.validation import as_array
 
 
 class TargetMotion(abc.ABC):
@@ -120,6 +121,10 @@ class TwoSphereTarget:
     diameter: float
     separation: float
     motion: TargetMotion
+
+    def __post_init__(self) -> None:
+        """Refuse a start that is not a finite 3-vector (ShapeError, NonFiniteValue)."""
+        object.__setattr__(self, "start", as_array("start", self.start, (3,)))
 
     def centres(self, t: float) -> np.ndarray:
         """Upper and lower sphere centres [m]. Shape (2, 3)."""

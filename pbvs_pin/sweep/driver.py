@@ -4,10 +4,19 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
+import threading
+from collections.abc import Iterator
 from pathlib import Path
 
-from pbvs_pin.exceptions import PbvsError
-from pbvs_pin.sweep.executors import dask_executor, execute, process_pool, worker_environment
+from pbvs_pin.exceptions import PbvsError, SweepIncomplete
+from pbvs_pin.sweep.executors import (
+    dask_executor,
+    execute,
+    probe_scheduler,
+    process_pool,
+    worker_environment,
+)
 from pbvs_pin.sweep.plots import plot_sweep
 from pbvs_pin.sweep.spec import load_sweep
 from pbvs_pin.sweep.table import (
@@ -31,6 +40,7 @@ def run_sweep(
     max_runs: int | None = None,
     retry_failed: bool = False,
     progress: bool = True,
+    force: bool = False,
 ) -> Path:
     """Run (or resume) a sweep; return the path of its results table (``results.csv``).
 
@@ -44,28 +54,37 @@ def run_sweep(
         max_runs: Stop after this many new runs (the rest are left for a resume).
         retry_failed: Run again the runs recorded as failed.
         progress: Show a progress bar (tqdm) on stderr.
+        force: Adopt a folder that holds results but whose ``sweep.json`` is missing or
+            unreadable (it is rewritten for this spec).
 
     Raises:
-        ScenarioError: If the spec is invalid, or ``out`` holds another sweep's results.
-        PbvsError: If ``workers`` is not positive, the Dask scheduler cannot be reached, or
-            another sweep is writing into ``out``.
+        ScenarioError: If the spec is invalid, or ``out`` holds another sweep's results (or
+            results without a readable ``sweep.json``, unless ``force``).
+        PbvsError: If ``workers`` or ``max_runs`` is not positive, the Dask scheduler cannot
+            be reached or is not one, or another sweep is writing into ``out``.
+        SweepIncomplete: If runs could not finish (a lost scheduler or workers, Ctrl-C,
+            SIGTERM): the finished ones are saved, the others are run by a resume.
     """
     from tqdm import tqdm
 
     sweep = load_sweep(spec)
-    if workers is not None and workers < 1:
-        raise PbvsError(f"--workers: expected a positive number of processes, got {workers}")
+    for name, value in (("--workers", workers), ("--max-runs", max_runs)):
+        if value is not None and (isinstance(value, bool) or value < 1):
+            raise PbvsError(f"{name}: expected a positive whole number, got {value}")
+    if scheduler:
+        probe_scheduler(scheduler)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    with exclusive(out):
-        check_folder(sweep, out)
+    with exclusive(out), _signals_as_stop() as stop:
+        check_folder(sweep, out, force)
         table = ResultTable(out / TABLE)
         if retry_failed:
             table.remove({i for i, row in table.rows.items() if row.get("status") != "ok"})
         tasks = sweep.tasks(out / "logs" if sweep.save_logs else None)
         pending = [task for task in tasks if task.run_id not in table.rows]
         if max_runs is not None:
-            pending = pending[: max(0, max_runs)]
+            pending = pending[:max_runs]
+        unfinished: list = []
         with contextlib.ExitStack() as stack:
             if scheduler:
                 make_executor, threads = stack.enter_context(dask_executor(scheduler))
@@ -84,15 +103,48 @@ def run_sweep(
                     disable=not progress,
                 )
             )
-            if pending:
-                for row, timing in execute(make_executor, pending, window):
+            try:
+                for row, timing in execute(make_executor, pending, window, unfinished, stop):
                     table.append(row)
                     append_timing(out / TIMINGS, timing)
                     bar.update(1)
                     if row["status"] != "ok":
                         bar.write(f"{row['run_id']} failed: {format_cell(row['reason'])[:200]}")
-        table.finalize(sweep.fields)
-        write_parquet(table.path, out / "results.parquet")
+                if stop.is_set():
+                    raise KeyboardInterrupt
+            except KeyboardInterrupt:
+                missing = sum(task.run_id not in table.rows for task in tasks)
+                raise SweepIncomplete(str(out), missing, len(tasks), "interrupted") from None
         if table.rows:
+            table.finalize(sweep.fields)
+            write_parquet(table.path, out / "results.parquet")
             plot_sweep(table.path, out)
+        if unfinished:
+            cause = "a lost Dask scheduler or worker" if scheduler else "lost worker processes"
+            reason = f"{cause}: {format_cell(unfinished[0][1])[:200]}"
+            raise SweepIncomplete(str(out), len(unfinished), len(tasks), reason)
     return table.path
+
+
+@contextlib.contextmanager
+def _signals_as_stop() -> Iterator[threading.Event]:
+    """An event that SIGTERM and SIGINT set; :func:`execute` stops at its next step.
+
+    The sweep stops between steps, never inside one (a worker half started by the fork
+    server would print a traceback). SIGINT is handled explicitly too, because a shell starts
+    background jobs with it ignored.
+    """
+    stop = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+
+    def interrupt(signum: int, frame: object) -> None:
+        stop.set()
+
+    previous = {sig: signal.signal(sig, interrupt) for sig in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        yield stop
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)

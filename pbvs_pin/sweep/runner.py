@@ -180,15 +180,3 @@ def analysis_columns(result: dict[str, Any]) -> dict[str, Any]:
         "passivity14_holds": p14["holds"],
     }
     return {column: values[column] for column in ANALYSIS_COLUMNS}
-
-
-def failed_run(task: RunTask, reason: str) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Row of a run whose worker failed (not the run itself)."""
-    row = {
-        "run_id": task.run_id,
-        "status": "failed",
-        "reason": reason,
-        "seed": task.seed,
-        **task.params,
-    }
-    return row, {"run_id": task.run_id, "worker": "-"}

@@ -170,22 +170,47 @@ def exclusive(folder: Path) -> Iterator[None]:
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def check_folder(spec: SweepSpec, out: Path) -> None:
-    """Write ``sweep.json``, or refuse a folder that holds another sweep's results."""
+def check_folder(spec: SweepSpec, out: Path, force: bool = False) -> None:
+    """Write ``sweep.json``, or refuse a folder that holds another sweep's results.
+
+    A folder with results (``results.csv`` or ``timings.csv``) whose ``sweep.json`` is
+    missing or unreadable cannot be told apart from another sweep's: it is refused unless
+    ``force``, which adopts it for ``spec``.
+
+    Raises:
+        ScenarioError: Naming the spec and the folder.
+    """
     meta_path = out / "sweep.json"
+    has_results = any((out / name).exists() for name in (TABLE, TIMINGS))
+    previous = None
     if meta_path.exists():
         try:
             previous = json.loads(meta_path.read_text()).get("fingerprint")
-        except (json.JSONDecodeError, AttributeError):
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError):
             previous = None
-        if previous is not None and previous != spec.fingerprint:
+        if previous is None and not force:
             raise ScenarioError(
                 spec.source,
                 "",
-                f"{out} holds results of a sweep with another "
-                "base scenario, fixed values, seed or epsilon; use another "
-                "output folder",
+                f"{meta_path} is unreadable or holds no fingerprint, so the results in {out} "
+                "cannot be matched to this spec; use another output folder, or --force "
+                "(force=True) to adopt them",
             )
+    elif has_results and not force:
+        raise ScenarioError(
+            spec.source,
+            "",
+            f"{out} holds results but no sweep.json, so they cannot be matched to this spec; "
+            "use another output folder, or --force (force=True) to adopt them",
+        )
+    if previous is not None and previous != spec.fingerprint:
+        raise ScenarioError(
+            spec.source,
+            "",
+            f"{out} holds results of a sweep with another "
+            "base scenario, fixed values, seed or epsilon; use another "
+            "output folder",
+        )
     meta = {
         "name": spec.name,
         "spec": spec.source,
