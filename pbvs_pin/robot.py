@@ -38,7 +38,7 @@ from pbvs_pin.urdf_checks import check_meshes
 from pbvs_pin.validation import as_array, as_se3
 
 UNIT_TOLERANCE = 1e-6
-"""Largest | |(cos, sin)| - 1 | of an angle stored as a pair in a configuration."""
+"""Largest deviation from 1 of the norm of an angle's ``(cos, sin)`` pair in a configuration."""
 
 DEFAULT_JOINT_SPEED = 1.0
 """Velocity limit [rad/s or m/s] used for a joint whose URDF gives none."""

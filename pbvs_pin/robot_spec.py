@@ -39,7 +39,7 @@ from pbvs_pin.exceptions import (
 from pbvs_pin.robot import MobileManipulator
 
 
-class RobotSection(Protocol):
+class RobotTable(Protocol):
     """What this module reads of a ``[robot]`` table (:class:`pbvs_pin.sim.sections.RobotSection`).
 
     Declared here, not imported, so that the table's module can use this one without a cycle.
@@ -103,7 +103,7 @@ def is_path(name: str, value: str) -> bool:
     )
 
 
-def drive_of(spec: RobotSection) -> DifferentialDrive | str:
+def drive_of(spec: RobotTable) -> DifferentialDrive | str:
     """The drive: explicit from the drive keys, else ``"differential"`` (found in the URDF).
 
     This is the one place where the drive keys reach the robot builders, as the ``base``
@@ -115,7 +115,7 @@ def drive_of(spec: RobotSection) -> DifferentialDrive | str:
 
 
 def build_robot_from(
-    spec: RobotSection, camera: CameraIntrinsics | None = None
+    spec: RobotTable, camera: CameraIntrinsics | None = None
 ) -> MobileManipulator:
     """Build the robot a ``[robot]`` table describes, with its ``home`` if given.
 
@@ -141,7 +141,7 @@ def build_robot_from(
     return robot
 
 
-def _build(spec: RobotSection, camera: CameraIntrinsics | None) -> MobileManipulator:
+def _build(spec: RobotTable, camera: CameraIntrinsics | None) -> MobileManipulator:
     """The robot of the table's form (package errors pass through)."""
     if spec.form == "name":
         return build_robot(spec.name, camera)
@@ -158,7 +158,7 @@ def _build(spec: RobotSection, camera: CameraIntrinsics | None) -> MobileManipul
     )
 
 
-def _field_at_fault(spec: RobotSection, err: PbvsError) -> str:
+def _field_at_fault(spec: RobotTable, err: PbvsError) -> str:
     """The key of ``spec`` that an error while building the robot comes from."""
     form = spec.form
     if form == "name":

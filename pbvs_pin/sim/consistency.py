@@ -41,7 +41,7 @@ from pbvs_pin.sim.sections import (
 )
 
 
-class Scenario(Protocol):
+class ScenarioView(Protocol):
     """What these checks read of a :class:`pbvs_pin.sim.scenario.Scenario`.
 
     Declared here, not imported, because the scenario's own validation calls these checks.
@@ -64,7 +64,7 @@ MIN_LOG_SAMPLES = 2
 """Fewest log samples a run must produce (the analysis needs a start and an end)."""
 
 
-def check_consistency(scenario: Scenario) -> None:
+def check_consistency(scenario: ScenarioView) -> None:
     """Refuse values that contradict each other (see the module doc).
 
     Raises:
@@ -101,7 +101,7 @@ def _whole_steps(period: float, step: float) -> bool:
     return abs(ratio - round(ratio)) <= RATE_TOLERANCE * ratio
 
 
-def _check_rates(scenario: Scenario) -> None:
+def _check_rates(scenario: ScenarioView) -> None:
     """Plant step, control, camera, log and laser rates, duration and latency."""
     duration = scenario.duration
     plant_dt = scenario.simulation.plant_dt
@@ -173,7 +173,7 @@ def _check_rates(scenario: Scenario) -> None:
         )
 
 
-def _check_obstacles(scenario: Scenario) -> None:
+def _check_obstacles(scenario: ScenarioView) -> None:
     """No obstacle overlaps the platform's footprint at the start (base at the origin)."""
     platform = scenario.platform
     boundary = footprint_points(platform.length, platform.width)
