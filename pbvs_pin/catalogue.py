@@ -18,6 +18,7 @@ import numpy as np
 
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.exceptions import RobotNotFound
+from pbvs_pin.home import compute_home
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.shipped import shipped_urdf
 
@@ -94,8 +95,8 @@ REFERENCE_ROBOT = "pioneer_cyton"
 ROBOT_NAMES = (REFERENCE_ROBOT, *RECIPES)
 """Every shipped robot name."""
 
-OTHER_ROBOTS = ("pioneer_ur5", "tiago")
-"""Robots the paper's experiments are repeated on by default, besides the reference robot."""
+OTHER_ROBOTS = tuple(name for name in ROBOT_NAMES if name != REFERENCE_ROBOT)
+"""Robots the paper's experiments are repeated on by default: every other shipped robot."""
 
 
 def example_robot_data_arms() -> list[str]:
@@ -113,6 +114,8 @@ def example_robot_data_arms() -> list[str]:
 
 def build_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileManipulator:
     """Build a shipped robot, or load a URDF file that has a ``camera_optical_frame``.
+
+    A URDF file's home posture is computed (:func:`pbvs_pin.home.compute_home`).
 
     Args:
         name: A name from :data:`ROBOT_NAMES`, or a URDF path.
@@ -136,7 +139,9 @@ def build_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileMani
         robot.home_arm = np.array(recipe.home)
         return robot
     if Path(name).suffix.lower() == ".urdf" or Path(name).exists():
-        return MobileManipulator.from_urdf(name, camera=camera)
+        robot = MobileManipulator.from_urdf(name, camera=camera)
+        robot.home_arm = compute_home(robot)
+        return robot
     raise RobotNotFound(name, ROBOT_NAMES)
 
 

@@ -122,7 +122,8 @@ class MobileManipulator:
         velocity_names: Names of the actuated velocities. Length n.
         velocity_limits: Largest magnitude of each actuated velocity, SI units. Shape (n,).
         source: File or name the robot was built from.
-        home_arm: Arm posture [rad or m] of :meth:`home`; zeros unless a recipe sets it.
+        home_arm: Arm posture [rad or m] of :meth:`home`; zeros until set (a shipped recipe's,
+            a scenario's ``robot.home`` or :func:`pbvs_pin.home.compute_home`).
         arm_q_indices: Index in ``q`` of each arm joint. Shape (n_arm,).
         arm_continuous: Whether each arm joint is continuous (stored as cos, sin). Shape (n_arm,).
         urdf_xml: The assembled URDF the model was built from (drive footprint and camera frame

@@ -30,12 +30,14 @@ from pbvs_pin.catalogue import build_robot
 from pbvs_pin.exceptions import (
     DriveAxleNotFound,
     FrameNotFound,
+    HomeNotFound,
     NoMovableJoint,
     PbvsError,
     RobotNotFound,
     ScenarioError,
     UrdfError,
 )
+from pbvs_pin.home import compute_home
 from pbvs_pin.robot import MobileManipulator
 
 
@@ -138,6 +140,13 @@ def build_robot_from(
         raise ScenarioError(spec.source, f"robot.{field}", problem) from err
     if spec.home is not None:
         robot.home_arm = arm_posture(spec.source, "robot.home", robot, spec.home)
+    elif spec.form != "name":
+        try:
+            robot.home_arm = compute_home(robot)
+        except HomeNotFound as err:
+            raise ScenarioError(
+                spec.source, "robot.home", f"{err}; give the arm's home posture explicitly"
+            ) from err
     return robot
 
 

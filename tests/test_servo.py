@@ -230,3 +230,36 @@ def test_invalid_servo_parameters_raise(damped, field):
     values[field] = -values[field] - 1.0
     with pytest.raises(GainError, match=field):
         ServoModel(**values)
+
+
+def test_light_joint_with_friction_does_not_chatter(tmp_path):
+    """A light link with URDF friction, commanded small speeds that change sign, follows them.
+
+    One plant step of full friction would change the joint's speed by F h / I = 1 N m * 1 ms
+    / 1e-4 kg m^2 = 10 rad/s: without a smoothing band at least that wide the semi-implicit
+    step jumps across it and the joint chatters at a large fraction of its speed limit.
+    """
+    text = (DATA_DIR / "damped_arm.urdf").read_text()
+    text = text.replace(
+        '<inertial><origin xyz="0.1 0 0"/><mass value="0.4"/><inertia ixx="0.001" ixy="0" '
+        'ixz="0" iyy="0.002" iyz="0" izz="0.002"/></inertial>',
+        '<inertial><mass value="0.05"/><inertia ixx="0.0001" ixy="0" ixz="0" iyy="0.0001" '
+        'iyz="0" izz="0.0001"/></inertial>',
+    )
+    text = text.replace('<dynamics damping="0.05"/>', '<dynamics damping="1.0" friction="1.0"/>')
+    assert 'friction="1.0"' in text and 'mass value="0.05"' in text
+    urdf = tmp_path / "light_wrist.urdf"
+    urdf.write_text(text)
+    robot = MobileManipulator.assemble(
+        base="pioneer3at", arm=str(urdf), mount=(0.1, 0.0, 0.27, 0.0, 0.0, 0.0),
+        camera_link="tool_link",
+    )  # fmt: skip
+    plant = Plant(robot, ServoModel.from_robot(robot), _start(robot), DT)
+    pitch = robot.n_base + 1
+    worst = 0.0
+    for step in range(1000):
+        v_ref = np.zeros(robot.n)
+        v_ref[pitch] = 0.003 * np.sign(np.sin(2 * np.pi * 5 * step * DT) + 1e-9)
+        plant.step(v_ref)
+        worst = max(worst, abs(plant.v[pitch]))
+    assert worst < 0.01, f"pitch joint reached {worst:.3f} rad/s under a 0.003 rad/s command"

@@ -535,7 +535,14 @@ class SecondarySection(Section):
 
     TABLE: ClassVar[str] = "secondary"
     obstacle_avoidance: bool = key(False, "Avoid obstacles seen by the laser, eqs. (17)-(18).")
-    posture: bool = key(False, "Pull the arm to maximum manipulability, eq. (19).")
+    posture: bool = key(False, "Pull the arm to theta_d, eq. (19).")
+    posture_target: str = key(
+        "home",
+        "theta_d of eq. (19): 'home', the robot's home posture (the most manipulable posture "
+        "with the camera looking forward, upright: pbvs_pin.home), or 'max_manipulability', "
+        "the paper's unconstrained maximum of the arm's manipulability.",
+        choices=("home", "max_manipulability"),
+    )
     joint_limits: bool = key(True, "Keep the arm joints away from their limits.")
     k_uobs: float = key(0.5, "k_uobs of eq. (17) [1/(rad s)].", sign=POSITIVE)
     k_wobs: float = key(0.9, "k_wobs of eq. (18) [1/s].", sign=POSITIVE)
