@@ -144,9 +144,7 @@ def build_robot_from(
         try:
             robot.home_arm = compute_home(robot)
         except HomeNotFound as err:
-            raise ScenarioError(
-                spec.source, "robot.home", f"{err}; give the arm's home posture explicitly"
-            ) from err
+            raise ScenarioError(spec.source, "robot.home", str(err)) from err
     return robot
 
 

@@ -18,6 +18,7 @@ import pytest
 from conftest import REPO_ROOT
 
 import pbvs_pin
+from pbvs_pin.catalogue import OTHER_ROBOTS
 from pbvs_pin.cli import main
 from pbvs_pin.exceptions import OutputError
 from pbvs_pin.sim.log import RunLog
@@ -76,7 +77,7 @@ def test_list_names_robots_arms_scenarios_and_sweeps(capsys):
         ("run", ("(default: results/run)", "(default: 1.0)", "shipped scenario name")),
         (
             "reproduce",
-            ("(default: results)", "(default: pioneer_ur5 tiago)", "--no-replay", "--robots"),
+            ("(default: results)", f"(default: {' '.join(OTHER_ROBOTS)})", "--no-replay", "--robots"),
         ),
         ("analyze", ("(default: 0.5)",)),
     ],

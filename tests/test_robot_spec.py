@@ -124,7 +124,8 @@ camera_pose = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
     error, _ = _robot_error(tmp_path, table)
     assert error.field == "robot.base"
     assert "wheel_radius, track and wheel_speed_limit" in str(error)
-    drive = "wheel_radius = 0.1\ntrack = 0.4\nwheel_speed_limit = 5.0\n"
+    # the toy arm cannot point its camera forward, so its home is given
+    drive = "wheel_radius = 0.1\ntrack = 0.4\nwheel_speed_limit = 5.0\nhome = [0.0]\n"
     robot = load_scenario(_scenario_file(tmp_path, table + drive)).robot.build()
     # Platform limits r w_max = 0.5 m/s and 2 r w_max / track = 2.5 rad/s.
     np.testing.assert_allclose(robot.velocity_limits[:2], [0.5, 2.5])
@@ -284,3 +285,23 @@ def test_readme_examples_run(tmp_path):
         assert scenario.robot.form == form
         log = simulate(scenario)
         assert np.all(np.isfinite(log["xi"][-1]))
+
+
+def test_a_robot_whose_camera_cannot_look_forward_needs_its_home(tmp_path):
+    """Without `home`, the home is computed; an arm that cannot point its camera forward is
+    refused on robot.home, naming what to give."""
+    table = f"""
+[robot]
+base = "{DATA_DIR / "box_platform.urdf"}"
+arm = "{DATA_DIR / "one_joint_arm.urdf"}"
+mount = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+camera_link = "tool_link"
+camera_pose = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+wheel_radius = 0.1
+track = 0.4
+wheel_speed_limit = 5.0
+"""
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario(_scenario_file(tmp_path, table)).robot.build()
+    assert caught.value.field == "robot.home"
+    assert "give the home posture explicitly" in str(caught.value)
