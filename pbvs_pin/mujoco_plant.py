@@ -7,16 +7,20 @@ URDF importer and ``MjSpec``): the platform's root body gets a free joint, its d
 cylinders (the URDF's wheel radius) that roll with friction on a ground plane, and every wheel
 and arm joint is driven by a velocity servo
 
-.. math:: \tau_j = \mathrm{clip}\big(k_j (\dot q_{j,ref} - \dot q_j) + G_j\, g_j(q),
-          \ \pm \tau_{j,max}\big),
+.. math:: \tau_j = \mathrm{clip}\big(K_j(q) (r_j - \dot q_j) + D_j r_j + F_j \tanh(r_j / v_s)
+          + G_j\, g_j(q),\ \pm \tau_{j,max}\big),\quad r_j = \mathrm{clip}(\dot q_{j,ref},
+          \pm v_{j,max}),
 
-with the URDF's effort as ``tau_max`` (MuJoCo joint ``actuatorfrcrange``), the URDF's damping
-and friction as MuJoCo joint ``damping``/``frictionloss``, and the URDF's limits as MuJoCo joint
-limits; ``G_j g_j`` is the servo's cancellation of its own gravity load (``G`` of
-:class:`pbvs_pin.dynamics.VelocityLoop`). The platform command ``[u, omega]`` becomes wheel
-speeds ``w_l = (u - omega b / 2) / r``, ``w_r = (u + omega b / 2) / r`` (track ``b``, wheel
-radius ``r``), the inverse of ``u = r (w_l + w_r) / 2``, ``omega = r (w_r - w_l) / b``. Whether
-the platform then moves as a unicycle is up to the contacts: a skid-steer platform slips.
+the servo of :class:`pbvs_pin.servo.ServoModel` (the one the Pinocchio plant applies): the
+stiffness ``K_j(q) = sum_k |M_v,jk(q)| / T_j`` scheduled with MuJoCo's own mass matrix in the
+actuated velocities, the URDF's effort as ``tau_max`` (MuJoCo joint ``actuatorfrcrange``), the
+URDF's damping and friction as MuJoCo joint ``damping``/``frictionloss`` (fed forward by the
+servo), and the URDF's limits as MuJoCo joint limits; ``G_j g_j`` is the servo's cancellation
+of its own gravity load. The platform command ``[u, omega]`` (clipped to the servo's speed
+limits) becomes wheel speeds ``w_l = (u - omega b / 2) / r``, ``w_r = (u + omega b / 2) / r``
+(track ``b``, wheel radius ``r``), the inverse of ``u = r (w_l + w_r) / 2``,
+``omega = r (w_r - w_l) / b``. Whether the platform then moves as a unicycle is up to the
+contacts: a skid-steer platform slips.
 
 Contacts: only platform geometry meets the ground. Drive wheels have Coulomb friction
 :data:`WHEEL_FRICTION` (condim 3; MuJoCo's default pyramidal cone and Newton solver, 2x faster
@@ -44,8 +48,8 @@ from pbvs_pin.base import DifferentialDrive
 from pbvs_pin.exceptions import GainError, UrdfError
 
 if TYPE_CHECKING:
-    from pbvs_pin.dynamics import VelocityLoop
     from pbvs_pin.robot import MobileManipulator
+    from pbvs_pin.servo import ServoModel
 
 WHEEL_FRICTION = 1.0
 """Sliding friction coefficient of a drive wheel on the floor (rubber on concrete)."""
@@ -169,16 +173,21 @@ class MujocoPlant:
 
     Args:
         robot: The true robot (its ``urdf_xml`` is the MuJoCo model's source).
-        loop: The arm's low-level velocity loops: arm joint ``j`` gets the velocity gain
-            ``loop.gains[j]``; ``loop.gravity_compensated`` marks servos that cancel their own
-            gravity load. The base entries and ``loop.damping`` are not used: the wheels have
-            their own servos, and the joint damping is the URDF's, in MuJoCo.
+        servo: The robot's servos (:meth:`pbvs_pin.servo.ServoModel.from_robot`): the arm
+            joints' time constants, damping and friction feed-forward, effort and speed limits
+            and gravity compensation; the platform's speed limits bound the wheel references.
+            The wheels have their own servos (a skid-steer platform has no servo on ``u`` and
+            ``omega``; each wheel's motor controller has one).
         q: Initial configuration of the controller's model. Shape (nq,).
         dt: Integration step [s].
         friction: Sliding friction coefficient of the drive wheels on the ground.
         wheel_time_constant: Forward-speed time constant ``tau_w`` [s] of the wheel servos'
             proportional action, wheels not slipping.
         wheel_integral_time: Integral time ``T_i`` [s] of the wheel servos' integral action.
+        mass_scale: Factor on every body's mass and inertia of the URDF (a model error: the
+            true robot heavier than the URDF says).
+        settle: Time [s] the robot stands still under zero references before the run starts,
+            so that the wheels settle on the ground (0: start as placed).
 
     Attributes:
         model: The ``mujoco.MjModel``.
@@ -189,25 +198,34 @@ class MujocoPlant:
     def __init__(
         self,
         robot: MobileManipulator,
-        loop: VelocityLoop,
+        servo: ServoModel,
         q: npt.ArrayLike,
         dt: float = 1e-3,
         friction: float = WHEEL_FRICTION,
         wheel_time_constant: float = WHEEL_TIME_CONSTANT,
         wheel_integral_time: float = WHEEL_INTEGRAL_TIME,
+        mass_scale: float = 1.0,
+        settle: float = 0.0,
     ) -> None:
         if not 0 < dt <= 0.05:
             raise GainError(f"plant step: expected 0 < dt <= 0.05 s, got {dt}")
         for name, value in (
             ("wheel_time_constant", wheel_time_constant),
             ("wheel_integral_time", wheel_integral_time),
+            ("mass_scale", mass_scale),
         ):
             if not (np.isfinite(value) and value > 0):
-                raise GainError(f"{name}: expected > 0 s, got {value}")
-        self.robot, self.loop, self.dt = robot, loop, dt
+                raise GainError(f"{name}: expected > 0, got {value}")
+        if not (np.isfinite(settle) and settle >= 0):
+            raise GainError(f"settle: expected >= 0 s, got {settle}")
+        self.robot, self.servo, self.dt = robot, servo, dt
         self.wheel_integral_time = wheel_integral_time
         spec, self.axle = build_spec(robot, friction)
         spec.option.timestep = dt
+        for body in spec.bodies:
+            body.mass *= mass_scale
+            body.inertia = np.asarray(body.inertia) * mass_scale
+            body.fullinertia = np.asarray(body.fullinertia) * mass_scale  # NaN when unused
         drive = robot.base
         mass = sum(body.mass for body in spec.bodies)
         n_wheels = len(self.axle.wheel_joints)
@@ -215,9 +233,16 @@ class MujocoPlant:
         for name in self.axle.wheel_joints:
             spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
             spec.actuator(name).set_to_velocity(kv=wheel_gain)
-        for name, gain in zip(robot.arm_joint_names, loop.gains[robot.n_base :], strict=True):
+        n_base = robot.n_base
+        for name, effort in zip(robot.arm_joint_names, servo.effort[n_base:], strict=True):
             spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-            spec.actuator(name).set_to_velocity(kv=float(gain))
+            spec.actuator(name).set_to_velocity(kv=1.0)  # scheduled at every step
+            joint = spec.joint(name)
+            joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            if not np.isfinite(effort):
+                joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
+            else:
+                joint.actfrcrange = [-effort, effort]
         try:
             self.model = spec.compile()
         except ValueError as err:
@@ -230,10 +255,11 @@ class MujocoPlant:
         self._arm_joint = np.array([j.id for j in joint])
         self._arm_body = model.jnt_bodyid[self._arm_joint]
         self._arm_slide = model.jnt_type[self._arm_joint] == mujoco.mjtJoint.mjJNT_SLIDE
-        compensated = loop.gravity_weight[robot.n_base :] == 0.0
-        self._compensated_any = bool(compensated.any())
-        self._compensation = compensated / np.asarray(loop.gains[robot.n_base :], dtype=float)
         self._weight = model.body_subtreemass[self._arm_body] * -model.opt.gravity[2]
+        self._arm_actuator = np.arange(n_wheels, n_wheels + robot.n_arm)
+        self._inverse_time_constants = 1.0 / servo.time_constants[n_base:]
+        self._compensated = np.asarray(servo.gravity_compensated[n_base:], dtype=float)
+        self._full_mass = np.zeros((model.nv, model.nv))
         wheels = [model.joint(name) for name in self.axle.wheel_joints]
         left = model.body_pos[[j.bodyid[0] for j in wheels], 1] > 0.0
         half_track = 0.5 * drive.track
@@ -248,6 +274,11 @@ class MujocoPlant:
         )
         self._wheel_integral = np.zeros(len(wheels))
         self.reset(q)
+        if settle > 0:
+            for _ in range(round(settle / dt)):
+                self.step(np.zeros(robot.n))
+            self._wheel_integral[:] = 0.0
+            self.data.time = 0.0
 
     # ------------------------------------------------------------------ state
     def reset(self, q: npt.ArrayLike) -> None:
@@ -312,26 +343,60 @@ class MujocoPlant:
         hinge = axis[:, 0] * lever[:, 1] - axis[:, 1] * lever[:, 0]
         return self._weight * np.where(self._arm_slide, axis[:, 2], hinge)
 
+    def arm_stiffness(self) -> np.ndarray:
+        r"""The arm servos' stiffness ``K_j = sum_k |M_v,jk| / T_j`` [N m s/rad or N s/m].
+
+        ``M_v = S^T M S`` are the rows of MuJoCo's mass matrix ``M`` for the arm joints in the
+        actuated velocities ``[u, omega, arm]``: ``u`` moves the free joint along the heading,
+        ``omega`` turns it about z (the wheels, on other branches, do not couple with the arm).
+        Uses the mass matrix of the last ``mj_step1``.
+
+        Returns:
+            Shape (n_arm,).
+        """
+        mass = self._full_mass
+        mujoco.mj_fullM(self.model, self.data, mass)
+        rows = mass[self._arm_dof]
+        heading = self.data.xmat[1, [0, 3]]
+        coupling = np.abs(rows[:, :2] @ heading) + np.abs(rows[:, 5])
+        return self._inverse_time_constants * (
+            np.abs(rows[:, self._arm_dof]).sum(axis=1) + coupling
+        )
+
     def step(self, v_ref: np.ndarray) -> None:
         r"""Advance by one step ``dt`` under the velocity reference ``v_ref`` (shape (n,)).
 
-        ``mj_step1`` computes the current kinematics; the servo commands are set and
-        ``mj_step2`` integrates. Wheel references come from ``[u, omega]``; each wheel servo
-        adds integral action ``k_w e_i / T_i`` with ``e_i = \int (w_{ref} - w) dt`` (clamped at
-        the wheel's effort), as a wheel's motor controller does, so that a skid-steer platform
-        keeps turning against its wheels' side friction. A compensating arm servo adds its
-        gravity load divided by its gain.
+        ``mj_step1`` computes the current kinematics and mass matrix; the servo commands are
+        set and ``mj_step2`` integrates. Wheel references come from ``[u, omega]``; each wheel
+        servo adds integral action ``k_w e_i / T_i`` with ``e_i = \int (w_{ref} - w) dt``
+        (clamped at the wheel's effort), as a wheel's motor controller does, so that a
+        skid-steer platform keeps turning against its wheels' side friction. An arm servo's
+        velocity actuator gets the scheduled stiffness :meth:`arm_stiffness` as its gain and
+        ``r + (D r + F tanh(r / v_s) + G g) / K`` as its command (the module docstring's law).
         """
-        model, data = self.model, self.data
+        model, data, servo = self.model, self.data, self.servo
         mujoco.mj_step1(model, data)
-        n_wheels = self._n_wheels
-        wheel_ref = self._wheel_map @ v_ref[: self.robot.n_base]
+        n_wheels, n_base = self._n_wheels, self.robot.n_base
+        limits = servo.speed_limits
+        reference = np.minimum(np.maximum(v_ref, -limits), limits)
+        wheel_ref = self._wheel_map @ reference[:n_base]
         integral, limit = self._wheel_integral, self._integral_limit
         integral += self.dt * (wheel_ref - data.qvel[self._wheel_dof])
         np.minimum(np.maximum(integral, -limit, out=integral), limit, out=integral)
         ctrl = data.ctrl
         ctrl[:n_wheels] = wheel_ref + integral / self.wheel_integral_time
-        ctrl[n_wheels:] = v_ref[self.robot.n_base :]
-        if self._compensated_any:
-            ctrl[n_wheels:] += self._compensation * self.arm_gravity()
+        arm_ref = reference[n_base:]
+        gains = self.arm_stiffness()
+        friction = servo.friction[n_base:]
+        width = np.maximum(
+            servo.friction_speed, friction * self.dt / np.diag(self._full_mass)[self._arm_dof]
+        )
+        feed_forward = (
+            servo.damping[n_base:] * arm_ref
+            + friction * np.tanh(arm_ref / width)
+            + self._compensated * self.arm_gravity()
+        )
+        model.actuator_gainprm[self._arm_actuator, 0] = gains
+        model.actuator_biasprm[self._arm_actuator, 2] = -gains
+        ctrl[n_wheels:] = arm_ref + feed_forward / gains
         mujoco.mj_step2(model, data)
