@@ -182,7 +182,7 @@ class MujocoPlant:
         dt: Integration step [s].
         friction: Sliding friction coefficient of the drive wheels on the ground.
         wheel_time_constant: Forward-speed time constant ``tau_w`` [s] of the wheel servos'
-            proportional action, wheels not slipping.
+            proportional action, wheels not slipping, on the URDF's masses.
         wheel_integral_time: Integral time ``T_i`` [s] of the wheel servos' integral action.
         mass_scale: Factor on every body's mass and inertia of the URDF (a model error: the
             true robot heavier than the URDF says).
@@ -222,12 +222,12 @@ class MujocoPlant:
         self.wheel_integral_time = wheel_integral_time
         spec, self.axle = build_spec(robot, friction)
         spec.option.timestep = dt
+        mass = sum(body.mass for body in spec.bodies)  # the URDF's, which the servos are tuned on
         for body in spec.bodies:
             body.mass *= mass_scale
             body.inertia = np.asarray(body.inertia) * mass_scale
             body.fullinertia = np.asarray(body.fullinertia) * mass_scale  # NaN when unused
         drive = robot.base
-        mass = sum(body.mass for body in spec.bodies)
         n_wheels = len(self.axle.wheel_joints)
         wheel_gain = mass * drive.wheel_radius**2 / (n_wheels * wheel_time_constant)
         for name in self.axle.wheel_joints:
