@@ -41,6 +41,7 @@ import numpy as np
 import numpy.typing as npt
 import yourdfpy
 from lxml import etree
+from numba import njit
 
 from pbvs_pin import frames
 from pbvs_pin.assembly import DriveAxle, UrdfSource, find_drive_axle
@@ -256,8 +257,9 @@ class MujocoPlant:
         self._arm_body = model.jnt_bodyid[self._arm_joint]
         self._arm_slide = model.jnt_type[self._arm_joint] == mujoco.mjtJoint.mjJNT_SLIDE
         self._weight = model.body_subtreemass[self._arm_body] * -model.opt.gravity[2]
-        self._arm_actuator = np.arange(n_wheels, n_wheels + robot.n_arm)
         self._inverse_time_constants = 1.0 / servo.time_constants[n_base:]
+        self._damping = np.ascontiguousarray(servo.damping[n_base:], dtype=float)
+        self._friction = np.ascontiguousarray(servo.friction[n_base:], dtype=float)
         self._compensated = np.asarray(servo.gravity_compensated[n_base:], dtype=float)
         self._full_mass = np.zeros((model.nv, model.nv))
         wheels = [model.joint(name) for name in self.axle.wheel_joints]
@@ -326,77 +328,185 @@ class MujocoPlant:
 
     # ------------------------------------------------------------------ step
     def arm_gravity(self) -> np.ndarray:
-        r"""Gravity load of each arm joint, ``g_j = -a_j \cdot ((c_j - p_j) \times m_j g)``.
+        """Gravity load [N m or N] of the arm joints (:func:`arm_gravity_load`). Shape (n_arm,).
 
-        ``m_j`` and ``c_j`` are the mass and centre of mass of the subtree the joint moves,
-        ``p_j`` and ``a_j`` the joint's anchor and axis (a slide joint: ``-a_j \cdot m_j g``);
-        gravity is along the world's -z, ``g = (0, 0, -g_0)``, so that
-        ``g_j = m_j g_0 (a_x l_y - a_y l_x)`` with ``l = c_j - p_j``. Uses the positions of the
-        last ``mj_forward`` or ``mj_step1``.
-
-        Returns:
-            Generalised gravity [N m or N] of the arm joints. Shape (n_arm,).
+        Uses the positions of the last ``mj_forward`` or ``mj_step1``.
         """
+        out = np.empty(len(self._arm_joint))
         data = self.data
-        axis = data.xaxis[self._arm_joint]
-        lever = data.subtree_com[self._arm_body] - data.xanchor[self._arm_joint]
-        hinge = axis[:, 0] * lever[:, 1] - axis[:, 1] * lever[:, 0]
-        return self._weight * np.where(self._arm_slide, axis[:, 2], hinge)
-
-    def arm_stiffness(self) -> np.ndarray:
-        r"""The arm servos' stiffness ``K_j = sum_k |M_v,jk| / T_j`` [N m s/rad or N s/m].
-
-        ``M_v = S^T M S`` are the rows of MuJoCo's mass matrix ``M`` for the arm joints in the
-        actuated velocities ``[u, omega, arm]``: ``u`` moves the free joint along the heading,
-        ``omega`` turns it about z (the wheels, on other branches, do not couple with the arm).
-        Uses the mass matrix of the last ``mj_step1``.
-
-        Returns:
-            Shape (n_arm,).
-        """
-        mass = self._full_mass
-        mujoco.mj_fullM(self.model, self.data, mass)
-        rows = mass[self._arm_dof]
-        heading = self.data.xmat[1, [0, 3]]
-        coupling = np.abs(rows[:, :2] @ heading) + np.abs(rows[:, 5])
-        return self._inverse_time_constants * (
-            np.abs(rows[:, self._arm_dof]).sum(axis=1) + coupling
-        )
+        arm_gravity_load(
+            data.xaxis, data.xanchor, data.subtree_com, self._arm_joint, self._arm_body,
+            self._arm_slide, self._weight, out,
+        )  # fmt: skip
+        return out
 
     def step(self, v_ref: np.ndarray) -> None:
         r"""Advance by one step ``dt`` under the velocity reference ``v_ref`` (shape (n,)).
 
         ``mj_step1`` computes the current kinematics and mass matrix; the servo commands are
-        set and ``mj_step2`` integrates. Wheel references come from ``[u, omega]``; each wheel
-        servo adds integral action ``k_w e_i / T_i`` with ``e_i = \int (w_{ref} - w) dt``
-        (clamped at the wheel's effort), as a wheel's motor controller does, so that a
-        skid-steer platform keeps turning against its wheels' side friction. An arm servo's
-        velocity actuator gets the scheduled stiffness :meth:`arm_stiffness` as its gain and
-        ``r + (D r + F tanh(r / v_s) + G g) / K`` as its command (the module docstring's law).
+        set (:func:`servo_commands`) and ``mj_step2`` integrates. Wheel references come from
+        ``[u, omega]``; each wheel servo adds integral action ``k_w e_i / T_i`` with
+        ``e_i = \int (w_{ref} - w) dt`` (clamped at the wheel's effort), as a wheel's motor
+        controller does, so that a skid-steer platform keeps turning against its wheels' side
+        friction. An arm servo's velocity actuator gets the scheduled stiffness ``K_j`` as its
+        gain and ``r + (D r + F tanh(r / v_s) + G g) / K`` as its command (the module
+        docstring's law).
         """
         model, data, servo = self.model, self.data, self.servo
         mujoco.mj_step1(model, data)
-        n_wheels, n_base = self._n_wheels, self.robot.n_base
-        limits = servo.speed_limits
-        reference = np.minimum(np.maximum(v_ref, -limits), limits)
-        wheel_ref = self._wheel_map @ reference[:n_base]
-        integral, limit = self._wheel_integral, self._integral_limit
-        integral += self.dt * (wheel_ref - data.qvel[self._wheel_dof])
-        np.minimum(np.maximum(integral, -limit, out=integral), limit, out=integral)
-        ctrl = data.ctrl
-        ctrl[:n_wheels] = wheel_ref + integral / self.wheel_integral_time
-        arm_ref = reference[n_base:]
-        gains = self.arm_stiffness()
-        friction = servo.friction[n_base:]
-        width = np.maximum(
-            servo.friction_speed, friction * self.dt / np.diag(self._full_mass)[self._arm_dof]
-        )
-        feed_forward = (
-            servo.damping[n_base:] * arm_ref
-            + friction * np.tanh(arm_ref / width)
-            + self._compensated * self.arm_gravity()
-        )
-        model.actuator_gainprm[self._arm_actuator, 0] = gains
-        model.actuator_biasprm[self._arm_actuator, 2] = -gains
-        ctrl[n_wheels:] = arm_ref + feed_forward / gains
+        mujoco.mj_fullM(model, data, self._full_mass)
+        servo_commands(
+            self._full_mass, data.qvel, data.xmat[1], data.xaxis, data.xanchor,
+            data.subtree_com, np.asarray(v_ref, dtype=float), servo.speed_limits, self.robot.n_base,
+            self._wheel_map, self._wheel_dof, self._wheel_integral, self._integral_limit,
+            self.wheel_integral_time, self._arm_dof, self._arm_joint, self._arm_body,
+            self._arm_slide, self._weight, self._inverse_time_constants, self._damping,
+            self._friction, servo.friction_speed, self._compensated, self.dt,
+            model.actuator_gainprm, model.actuator_biasprm, data.ctrl,
+        )  # fmt: skip
         mujoco.mj_step2(model, data)
+
+
+@njit(cache=True)
+def arm_gravity_load(
+    xaxis: np.ndarray,
+    xanchor: np.ndarray,
+    subtree_com: np.ndarray,
+    arm_joint: np.ndarray,
+    arm_body: np.ndarray,
+    slide: np.ndarray,
+    weight: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    r"""Gravity load of each arm joint, ``g_j = -a_j \cdot ((c_j - p_j) \times m_j g)``.
+
+    ``m_j`` and ``c_j`` are the mass and centre of mass of the subtree the joint moves,
+    ``p_j`` and ``a_j`` the joint's anchor and axis (a slide joint: ``-a_j \cdot m_j g``);
+    gravity is along the world's -z, ``g = (0, 0, -g_0)``, so that
+    ``g_j = m_j g_0 (a_x l_y - a_y l_x)`` with ``l = c_j - p_j``.
+
+    Args:
+        xaxis: MuJoCo's ``data.xaxis`` (joint axes, world). Shape (njnt, 3).
+        xanchor: ``data.xanchor`` (joint anchors, world) [m]. Shape (njnt, 3).
+        subtree_com: ``data.subtree_com`` [m]. Shape (nbody, 3).
+        arm_joint: Joint id of each arm joint. Shape (n_arm,).
+        arm_body: Its body id. Shape (n_arm,).
+        slide: Whether it is a slide joint. Shape (n_arm,).
+        weight: ``m_j g_0`` [N]. Shape (n_arm,).
+        out: Written: ``g_j`` [N m or N]. Shape (n_arm,).
+    """
+    for j in range(arm_joint.shape[0]):
+        joint, body = arm_joint[j], arm_body[j]
+        if slide[j]:
+            out[j] = weight[j] * xaxis[joint, 2]
+        else:
+            lever_x = subtree_com[body, 0] - xanchor[joint, 0]
+            lever_y = subtree_com[body, 1] - xanchor[joint, 1]
+            out[j] = weight[j] * (xaxis[joint, 0] * lever_y - xaxis[joint, 1] * lever_x)
+
+
+@njit(cache=True)
+def servo_commands(
+    mass: np.ndarray,
+    qvel: np.ndarray,
+    footprint_rotation: np.ndarray,
+    xaxis: np.ndarray,
+    xanchor: np.ndarray,
+    subtree_com: np.ndarray,
+    v_ref: np.ndarray,
+    speed_limits: np.ndarray,
+    n_base: int,
+    wheel_map: np.ndarray,
+    wheel_dof: np.ndarray,
+    wheel_integral: np.ndarray,
+    integral_limit: np.ndarray,
+    integral_time: float,
+    arm_dof: np.ndarray,
+    arm_joint: np.ndarray,
+    arm_body: np.ndarray,
+    slide: np.ndarray,
+    weight: np.ndarray,
+    inverse_time_constants: np.ndarray,
+    damping: np.ndarray,
+    friction: np.ndarray,
+    friction_speed: float,
+    compensated: np.ndarray,
+    h: float,
+    gainprm: np.ndarray,
+    biasprm: np.ndarray,
+    ctrl: np.ndarray,
+) -> None:
+    r"""Set the wheel and arm servos' gains and commands for one MuJoCo step.
+
+    Wheels (actuators ``0 .. n_w - 1``): ``w_ref = W clip(v_ref[:n_base])``, the integral
+    ``e += h (w_ref - w)`` clamped at ``integral_limit``, command ``w_ref + e / T_i``.
+
+    Arm joint ``j`` (actuator ``n_w + j``): the stiffness of :class:`pbvs_pin.servo.ServoModel`,
+    ``K_j = (sum_k |M_v,jk|) / T_j``, with ``M_v = S^T M S`` in the actuated velocities
+    ``[u, omega, arm]`` (``u`` moves the free joint along the heading, ``omega`` turns it about z;
+    the wheels, on other branches, do not couple with the arm), is the velocity actuator's gain
+    (``gainprm = K``, ``biasprm[2] = -K``); its command is
+    ``r + (D r + F tanh(r / w) + G g) / K`` with ``r`` the clipped reference and the friction
+    band ``w = max(v_s, F h / M_jj)`` of :func:`pbvs_pin.servo.servo_step`.
+
+    Args:
+        mass: MuJoCo's dense mass matrix (``mj_fullM``). Shape (nv, nv).
+        qvel: ``data.qvel``. Shape (nv,).
+        footprint_rotation: ``data.xmat`` of the free body (row-major 3 x 3). Shape (9,).
+        xaxis: ``data.xaxis``. Shape (njnt, 3).
+        xanchor: ``data.xanchor``. Shape (njnt, 3).
+        subtree_com: ``data.subtree_com``. Shape (nbody, 3).
+        v_ref: Velocity reference ``[u, omega, arm rates]``. Shape (n,).
+        speed_limits: Largest reference per velocity. Shape (n,).
+        n_base: Number of platform velocities.
+        wheel_map: ``W``, wheel speeds from ``[u, omega]``. Shape (n_w, n_base).
+        wheel_dof: The wheels' dof addresses. Shape (n_w,).
+        wheel_integral: Updated: the wheels' integral ``e`` [rad]. Shape (n_w,).
+        integral_limit: Its clamp [rad]. Shape (n_w,).
+        integral_time: ``T_i`` [s].
+        arm_dof: The arm joints' dof addresses. Shape (n_arm,).
+        arm_joint: Joint id of each arm joint (:func:`arm_gravity_load`). Shape (n_arm,).
+        arm_body: Its body id. Shape (n_arm,).
+        slide: Whether it is a slide joint. Shape (n_arm,).
+        weight: ``m_j g_0`` of its subtree [N]. Shape (n_arm,).
+        inverse_time_constants: ``1 / T_j`` of the arm servos. Shape (n_arm,).
+        damping: ``D_j``. Shape (n_arm,).
+        friction: ``F_j``. Shape (n_arm,).
+        friction_speed: ``v_s``.
+        compensated: Diagonal of ``G`` (1.0 or 0.0). Shape (n_arm,).
+        h: Step [s].
+        gainprm: Written: ``model.actuator_gainprm``. Shape (nu, 10).
+        biasprm: Written: ``model.actuator_biasprm``. Shape (nu, 10).
+        ctrl: Written: ``data.ctrl``. Shape (nu,).
+    """
+    n_wheels = wheel_dof.shape[0]
+    for i in range(n_wheels):
+        wheel_ref = 0.0
+        for k in range(n_base):
+            wheel_ref += wheel_map[i, k] * min(max(v_ref[k], -speed_limits[k]), speed_limits[k])
+        error = wheel_integral[i] + h * (wheel_ref - qvel[wheel_dof[i]])
+        wheel_integral[i] = min(max(error, -integral_limit[i]), integral_limit[i])
+        ctrl[i] = wheel_ref + wheel_integral[i] / integral_time
+    n_arm = arm_dof.shape[0]
+    gravity = np.empty(n_arm)
+    arm_gravity_load(xaxis, xanchor, subtree_com, arm_joint, arm_body, slide, weight, gravity)
+    heading_x, heading_y = footprint_rotation[0], footprint_rotation[3]
+    norm = np.hypot(heading_x, heading_y)
+    for j in range(n_arm):
+        a = arm_dof[j]
+        row = abs((mass[a, 0] * heading_x + mass[a, 1] * heading_y) / norm) + abs(mass[a, 5])
+        for k in range(n_arm):
+            row += abs(mass[a, arm_dof[k]])
+        gain = inverse_time_constants[j] * row
+        limit = speed_limits[n_base + j]
+        reference = min(max(v_ref[n_base + j], -limit), limit)
+        width = max(friction_speed, friction[j] * h / mass[a, a])
+        feed_forward = (
+            damping[j] * reference
+            + friction[j] * np.tanh(reference / width)
+            + compensated[j] * gravity[j]
+        )
+        actuator = n_wheels + j
+        gainprm[actuator, 0] = gain
+        biasprm[actuator, 2] = -gain
+        ctrl[actuator] = reference + feed_forward / gain
