@@ -106,6 +106,22 @@ def _static_descendants(body: mujoco.MjsBody) -> list[mujoco.MjsBody]:
     return found
 
 
+def _repair_inertia(body: mujoco.MjsBody) -> None:
+    """Replace a full inertia that is not positive definite by its diagonal's magnitudes.
+
+    MuJoCo refuses such an inertia, Pinocchio does not: TIAGo's antenna links (1e-6 kg) have
+    products of inertia larger than their moments. The change is far below the arm's and the
+    platform's inertias (the cross-engine test holds to 1e-6).
+    """
+    full = np.asarray(body.fullinertia, dtype=float)
+    if np.isnan(full[0]):
+        return
+    xx, yy, zz, xy, xz, yz = full
+    matrix = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    if np.linalg.eigvalsh(matrix)[0] <= 0.0:
+        body.fullinertia = [abs(xx), abs(yy), abs(zz), 0.0, 0.0, 0.0]
+
+
 def build_spec(
     robot: MobileManipulator, friction: float = WHEEL_FRICTION
 ) -> tuple[mujoco.MjSpec, DriveAxle]:
@@ -139,6 +155,8 @@ def build_spec(
         raise UrdfError(robot.source, f"MuJoCo cannot read the URDF: {err}") from err
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     spec.compiler.fusestatic = True
+    for body in spec.bodies:
+        _repair_inertia(body)
     root = spec.body(frames.DRIVE_FOOTPRINT)
     root.add_freejoint(name=frames.DRIVE_FOOTPRINT)
     platform = {body.name for body in _static_descendants(root)}

@@ -196,3 +196,12 @@ def test_step_time_of_the_reference_robot():
         plant.step(v_ref)
         times.append(time.perf_counter() - start)
     assert np.median(times) < 200e-6  # a loose bound for shared CI machines
+
+
+def test_an_inertia_mujoco_refuses_is_replaced_by_its_diagonal():
+    """TIAGo's antenna links (1e-6 kg) have products of inertia above their moments: Pinocchio
+    takes them, MuJoCo refuses them; the plant compiles with their diagonal."""
+    robot = load_robot("tiago")
+    plant = _plant(robot)
+    assert np.all(plant.model.body_inertia[plant.model.body_mass > 0] > 0)
+    assert plant.model.nu == len(plant.axle.wheel_joints) + robot.n_arm
