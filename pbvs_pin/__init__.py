@@ -17,7 +17,7 @@ from pbvs_pin.base import BaseAdapter, DifferentialDrive, FixedBase, Omnidirecti
 from pbvs_pin.camera import CameraIntrinsics, point_interaction_matrix
 from pbvs_pin.catalogue import ROBOT_NAMES, load_robot
 from pbvs_pin.controller import Controller, ServoCommand
-from pbvs_pin.dynamics import DynamicTerms, VelocityLoop, rigid_body_terms
+from pbvs_pin.dynamics import DynamicTerms, rigid_body_terms
 from pbvs_pin.exceptions import (
     DriveAxleNotFound,
     FrameNotFound,
@@ -84,7 +84,6 @@ __all__ = [
     "ShapeError",
     "TwoSphereFeatures",
     "UrdfError",
-    "VelocityLoop",
     "ViewerUnavailable",
     "__version__",
     "arm_manipulability",

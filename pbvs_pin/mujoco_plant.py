@@ -7,16 +7,20 @@ URDF importer and ``MjSpec``): the platform's root body gets a free joint, its d
 cylinders (the URDF's wheel radius) that roll with friction on a ground plane, and every wheel
 and arm joint is driven by a velocity servo
 
-.. math:: \tau_j = \mathrm{clip}\big(k_j (\dot q_{j,ref} - \dot q_j) + G_j\, g_j(q),
-          \ \pm \tau_{j,max}\big),
+.. math:: \tau_j = \mathrm{clip}\big(K_j(q) (r_j - \dot q_j) + D_j r_j + F_j \tanh(r_j / v_s)
+          + G_j\, g_j(q),\ \pm \tau_{j,max}\big),\quad r_j = \mathrm{clip}(\dot q_{j,ref},
+          \pm v_{j,max}),
 
-with the URDF's effort as ``tau_max`` (MuJoCo joint ``actuatorfrcrange``), the URDF's damping
-and friction as MuJoCo joint ``damping``/``frictionloss``, and the URDF's limits as MuJoCo joint
-limits; ``G_j g_j`` is the servo's cancellation of its own gravity load (``G`` of
-:class:`pbvs_pin.dynamics.VelocityLoop`). The platform command ``[u, omega]`` becomes wheel
-speeds ``w_l = (u - omega b / 2) / r``, ``w_r = (u + omega b / 2) / r`` (track ``b``, wheel
-radius ``r``), the inverse of ``u = r (w_l + w_r) / 2``, ``omega = r (w_r - w_l) / b``. Whether
-the platform then moves as a unicycle is up to the contacts: a skid-steer platform slips.
+the servo of :class:`pbvs_pin.servo.ServoModel` (the one the Pinocchio plant applies): the
+stiffness ``K_j(q) = sum_k |M_v,jk(q)| / T_j`` scheduled with MuJoCo's own mass matrix in the
+actuated velocities, the URDF's effort as ``tau_max`` (MuJoCo joint ``actuatorfrcrange``), the
+URDF's damping and friction as MuJoCo joint ``damping``/``frictionloss`` (fed forward by the
+servo), and the URDF's limits as MuJoCo joint limits; ``G_j g_j`` is the servo's cancellation
+of its own gravity load. The platform command ``[u, omega]`` (clipped to the servo's speed
+limits) becomes wheel speeds ``w_l = (u - omega b / 2) / r``, ``w_r = (u + omega b / 2) / r``
+(track ``b``, wheel radius ``r``), the inverse of ``u = r (w_l + w_r) / 2``,
+``omega = r (w_r - w_l) / b``. Whether the platform then moves as a unicycle is up to the
+contacts: a skid-steer platform slips.
 
 Contacts: only platform geometry meets the ground. Drive wheels have Coulomb friction
 :data:`WHEEL_FRICTION` (condim 3; MuJoCo's default pyramidal cone and Newton solver, 2x faster
@@ -37,6 +41,7 @@ import numpy as np
 import numpy.typing as npt
 import yourdfpy
 from lxml import etree
+from numba import njit
 
 from pbvs_pin import frames
 from pbvs_pin.assembly import DriveAxle, UrdfSource, find_drive_axle
@@ -44,8 +49,8 @@ from pbvs_pin.base import DifferentialDrive
 from pbvs_pin.exceptions import GainError, UrdfError
 
 if TYPE_CHECKING:
-    from pbvs_pin.dynamics import VelocityLoop
     from pbvs_pin.robot import MobileManipulator
+    from pbvs_pin.servo import ServoModel
 
 WHEEL_FRICTION = 1.0
 """Sliding friction coefficient of a drive wheel on the floor (rubber on concrete)."""
@@ -101,6 +106,22 @@ def _static_descendants(body: mujoco.MjsBody) -> list[mujoco.MjsBody]:
     return found
 
 
+def _repair_inertia(body: mujoco.MjsBody) -> None:
+    """Replace a full inertia that is not positive definite by its diagonal's magnitudes.
+
+    MuJoCo refuses such an inertia, Pinocchio does not: TIAGo's antenna links (1e-6 kg) have
+    products of inertia larger than their moments. The change is far below the arm's and the
+    platform's inertias (the cross-engine test holds to 1e-6).
+    """
+    full = np.asarray(body.fullinertia, dtype=float)
+    if np.isnan(full[0]):
+        return
+    xx, yy, zz, xy, xz, yz = full
+    matrix = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    if np.linalg.eigvalsh(matrix)[0] <= 0.0:
+        body.fullinertia = [abs(xx), abs(yy), abs(zz), 0.0, 0.0, 0.0]
+
+
 def build_spec(
     robot: MobileManipulator, friction: float = WHEEL_FRICTION
 ) -> tuple[mujoco.MjSpec, DriveAxle]:
@@ -134,6 +155,8 @@ def build_spec(
         raise UrdfError(robot.source, f"MuJoCo cannot read the URDF: {err}") from err
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     spec.compiler.fusestatic = True
+    for body in spec.bodies:
+        _repair_inertia(body)
     root = spec.body(frames.DRIVE_FOOTPRINT)
     root.add_freejoint(name=frames.DRIVE_FOOTPRINT)
     platform = {body.name for body in _static_descendants(root)}
@@ -169,16 +192,21 @@ class MujocoPlant:
 
     Args:
         robot: The true robot (its ``urdf_xml`` is the MuJoCo model's source).
-        loop: The arm's low-level velocity loops: arm joint ``j`` gets the velocity gain
-            ``loop.gains[j]``; ``loop.gravity_compensated`` marks servos that cancel their own
-            gravity load. The base entries and ``loop.damping`` are not used: the wheels have
-            their own servos, and the joint damping is the URDF's, in MuJoCo.
+        servo: The robot's servos (:meth:`pbvs_pin.servo.ServoModel.from_robot`): the arm
+            joints' time constants, damping and friction feed-forward, effort and speed limits
+            and gravity compensation; the platform's speed limits bound the wheel references.
+            The wheels have their own servos (a skid-steer platform has no servo on ``u`` and
+            ``omega``; each wheel's motor controller has one).
         q: Initial configuration of the controller's model. Shape (nq,).
         dt: Integration step [s].
         friction: Sliding friction coefficient of the drive wheels on the ground.
         wheel_time_constant: Forward-speed time constant ``tau_w`` [s] of the wheel servos'
-            proportional action, wheels not slipping.
+            proportional action, wheels not slipping, on the URDF's masses.
         wheel_integral_time: Integral time ``T_i`` [s] of the wheel servos' integral action.
+        mass_scale: Factor on every body's mass and inertia of the URDF (a model error: the
+            true robot heavier than the URDF says).
+        settle: Time [s] the robot stands still under zero references before the run starts,
+            so that the wheels settle on the ground (0: start as placed).
 
     Attributes:
         model: The ``mujoco.MjModel``.
@@ -189,35 +217,51 @@ class MujocoPlant:
     def __init__(
         self,
         robot: MobileManipulator,
-        loop: VelocityLoop,
+        servo: ServoModel,
         q: npt.ArrayLike,
         dt: float = 1e-3,
         friction: float = WHEEL_FRICTION,
         wheel_time_constant: float = WHEEL_TIME_CONSTANT,
         wheel_integral_time: float = WHEEL_INTEGRAL_TIME,
+        mass_scale: float = 1.0,
+        settle: float = 0.0,
     ) -> None:
         if not 0 < dt <= 0.05:
             raise GainError(f"plant step: expected 0 < dt <= 0.05 s, got {dt}")
         for name, value in (
             ("wheel_time_constant", wheel_time_constant),
             ("wheel_integral_time", wheel_integral_time),
+            ("mass_scale", mass_scale),
         ):
             if not (np.isfinite(value) and value > 0):
-                raise GainError(f"{name}: expected > 0 s, got {value}")
-        self.robot, self.loop, self.dt = robot, loop, dt
+                raise GainError(f"{name}: expected > 0, got {value}")
+        if not (np.isfinite(settle) and settle >= 0):
+            raise GainError(f"settle: expected >= 0 s, got {settle}")
+        self.robot, self.servo, self.dt = robot, servo, dt
         self.wheel_integral_time = wheel_integral_time
         spec, self.axle = build_spec(robot, friction)
         spec.option.timestep = dt
+        mass = sum(body.mass for body in spec.bodies)  # the URDF's, which the servos are tuned on
+        for body in spec.bodies:
+            body.mass *= mass_scale
+            body.inertia = np.asarray(body.inertia) * mass_scale
+            body.fullinertia = np.asarray(body.fullinertia) * mass_scale  # NaN when unused
         drive = robot.base
-        mass = sum(body.mass for body in spec.bodies)
         n_wheels = len(self.axle.wheel_joints)
         wheel_gain = mass * drive.wheel_radius**2 / (n_wheels * wheel_time_constant)
         for name in self.axle.wheel_joints:
             spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
             spec.actuator(name).set_to_velocity(kv=wheel_gain)
-        for name, gain in zip(robot.arm_joint_names, loop.gains[robot.n_base :], strict=True):
+        n_base = robot.n_base
+        for name, effort in zip(robot.arm_joint_names, servo.effort[n_base:], strict=True):
             spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-            spec.actuator(name).set_to_velocity(kv=float(gain))
+            spec.actuator(name).set_to_velocity(kv=1.0)  # scheduled at every step
+            joint = spec.joint(name)
+            joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            if not np.isfinite(effort):
+                joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
+            else:
+                joint.actfrcrange = [-effort, effort]
         try:
             self.model = spec.compile()
         except ValueError as err:
@@ -230,10 +274,12 @@ class MujocoPlant:
         self._arm_joint = np.array([j.id for j in joint])
         self._arm_body = model.jnt_bodyid[self._arm_joint]
         self._arm_slide = model.jnt_type[self._arm_joint] == mujoco.mjtJoint.mjJNT_SLIDE
-        compensated = loop.gravity_weight[robot.n_base :] == 0.0
-        self._compensated_any = bool(compensated.any())
-        self._compensation = compensated / np.asarray(loop.gains[robot.n_base :], dtype=float)
         self._weight = model.body_subtreemass[self._arm_body] * -model.opt.gravity[2]
+        self._inverse_time_constants = 1.0 / servo.time_constants[n_base:]
+        self._damping = np.ascontiguousarray(servo.damping[n_base:], dtype=float)
+        self._friction = np.ascontiguousarray(servo.friction[n_base:], dtype=float)
+        self._compensated = np.asarray(servo.gravity_compensated[n_base:], dtype=float)
+        self._full_mass = np.zeros((model.nv, model.nv))
         wheels = [model.joint(name) for name in self.axle.wheel_joints]
         left = model.body_pos[[j.bodyid[0] for j in wheels], 1] > 0.0
         half_track = 0.5 * drive.track
@@ -248,6 +294,11 @@ class MujocoPlant:
         )
         self._wheel_integral = np.zeros(len(wheels))
         self.reset(q)
+        if settle > 0:
+            for _ in range(round(settle / dt)):
+                self.step(np.zeros(robot.n))
+            self._wheel_integral[:] = 0.0
+            self.data.time = 0.0
 
     # ------------------------------------------------------------------ state
     def reset(self, q: npt.ArrayLike) -> None:
@@ -295,43 +346,185 @@ class MujocoPlant:
 
     # ------------------------------------------------------------------ step
     def arm_gravity(self) -> np.ndarray:
-        r"""Gravity load of each arm joint, ``g_j = -a_j \cdot ((c_j - p_j) \times m_j g)``.
+        """Gravity load [N m or N] of the arm joints (:func:`arm_gravity_load`). Shape (n_arm,).
 
-        ``m_j`` and ``c_j`` are the mass and centre of mass of the subtree the joint moves,
-        ``p_j`` and ``a_j`` the joint's anchor and axis (a slide joint: ``-a_j \cdot m_j g``);
-        gravity is along the world's -z, ``g = (0, 0, -g_0)``, so that
-        ``g_j = m_j g_0 (a_x l_y - a_y l_x)`` with ``l = c_j - p_j``. Uses the positions of the
-        last ``mj_forward`` or ``mj_step1``.
-
-        Returns:
-            Generalised gravity [N m or N] of the arm joints. Shape (n_arm,).
+        Uses the positions of the last ``mj_forward`` or ``mj_step1``.
         """
+        out = np.empty(len(self._arm_joint))
         data = self.data
-        axis = data.xaxis[self._arm_joint]
-        lever = data.subtree_com[self._arm_body] - data.xanchor[self._arm_joint]
-        hinge = axis[:, 0] * lever[:, 1] - axis[:, 1] * lever[:, 0]
-        return self._weight * np.where(self._arm_slide, axis[:, 2], hinge)
+        arm_gravity_load(
+            data.xaxis, data.xanchor, data.subtree_com, self._arm_joint, self._arm_body,
+            self._arm_slide, self._weight, out,
+        )  # fmt: skip
+        return out
 
     def step(self, v_ref: np.ndarray) -> None:
         r"""Advance by one step ``dt`` under the velocity reference ``v_ref`` (shape (n,)).
 
-        ``mj_step1`` computes the current kinematics; the servo commands are set and
-        ``mj_step2`` integrates. Wheel references come from ``[u, omega]``; each wheel servo
-        adds integral action ``k_w e_i / T_i`` with ``e_i = \int (w_{ref} - w) dt`` (clamped at
-        the wheel's effort), as a wheel's motor controller does, so that a skid-steer platform
-        keeps turning against its wheels' side friction. A compensating arm servo adds its
-        gravity load divided by its gain.
+        ``mj_step1`` computes the current kinematics and mass matrix; the servo commands are
+        set (:func:`servo_commands`) and ``mj_step2`` integrates. Wheel references come from
+        ``[u, omega]``; each wheel servo adds integral action ``k_w e_i / T_i`` with
+        ``e_i = \int (w_{ref} - w) dt`` (clamped at the wheel's effort), as a wheel's motor
+        controller does, so that a skid-steer platform keeps turning against its wheels' side
+        friction. An arm servo's velocity actuator gets the scheduled stiffness ``K_j`` as its
+        gain and ``r + (D r + F tanh(r / v_s) + G g) / K`` as its command (the module
+        docstring's law).
         """
-        model, data = self.model, self.data
+        model, data, servo = self.model, self.data, self.servo
         mujoco.mj_step1(model, data)
-        n_wheels = self._n_wheels
-        wheel_ref = self._wheel_map @ v_ref[: self.robot.n_base]
-        integral, limit = self._wheel_integral, self._integral_limit
-        integral += self.dt * (wheel_ref - data.qvel[self._wheel_dof])
-        np.minimum(np.maximum(integral, -limit, out=integral), limit, out=integral)
-        ctrl = data.ctrl
-        ctrl[:n_wheels] = wheel_ref + integral / self.wheel_integral_time
-        ctrl[n_wheels:] = v_ref[self.robot.n_base :]
-        if self._compensated_any:
-            ctrl[n_wheels:] += self._compensation * self.arm_gravity()
+        mujoco.mj_fullM(model, data, self._full_mass)
+        servo_commands(
+            self._full_mass, data.qvel, data.xmat[1], data.xaxis, data.xanchor,
+            data.subtree_com, np.asarray(v_ref, dtype=float), servo.speed_limits, self.robot.n_base,
+            self._wheel_map, self._wheel_dof, self._wheel_integral, self._integral_limit,
+            self.wheel_integral_time, self._arm_dof, self._arm_joint, self._arm_body,
+            self._arm_slide, self._weight, self._inverse_time_constants, self._damping,
+            self._friction, servo.friction_speed, self._compensated, self.dt,
+            model.actuator_gainprm, model.actuator_biasprm, data.ctrl,
+        )  # fmt: skip
         mujoco.mj_step2(model, data)
+
+
+@njit(cache=True)
+def arm_gravity_load(
+    xaxis: np.ndarray,
+    xanchor: np.ndarray,
+    subtree_com: np.ndarray,
+    arm_joint: np.ndarray,
+    arm_body: np.ndarray,
+    slide: np.ndarray,
+    weight: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    r"""Gravity load of each arm joint, ``g_j = -a_j \cdot ((c_j - p_j) \times m_j g)``.
+
+    ``m_j`` and ``c_j`` are the mass and centre of mass of the subtree the joint moves,
+    ``p_j`` and ``a_j`` the joint's anchor and axis (a slide joint: ``-a_j \cdot m_j g``);
+    gravity is along the world's -z, ``g = (0, 0, -g_0)``, so that
+    ``g_j = m_j g_0 (a_x l_y - a_y l_x)`` with ``l = c_j - p_j``.
+
+    Args:
+        xaxis: MuJoCo's ``data.xaxis`` (joint axes, world). Shape (njnt, 3).
+        xanchor: ``data.xanchor`` (joint anchors, world) [m]. Shape (njnt, 3).
+        subtree_com: ``data.subtree_com`` [m]. Shape (nbody, 3).
+        arm_joint: Joint id of each arm joint. Shape (n_arm,).
+        arm_body: Its body id. Shape (n_arm,).
+        slide: Whether it is a slide joint. Shape (n_arm,).
+        weight: ``m_j g_0`` [N]. Shape (n_arm,).
+        out: Written: ``g_j`` [N m or N]. Shape (n_arm,).
+    """
+    for j in range(arm_joint.shape[0]):
+        joint, body = arm_joint[j], arm_body[j]
+        if slide[j]:
+            out[j] = weight[j] * xaxis[joint, 2]
+        else:
+            lever_x = subtree_com[body, 0] - xanchor[joint, 0]
+            lever_y = subtree_com[body, 1] - xanchor[joint, 1]
+            out[j] = weight[j] * (xaxis[joint, 0] * lever_y - xaxis[joint, 1] * lever_x)
+
+
+@njit(cache=True)
+def servo_commands(
+    mass: np.ndarray,
+    qvel: np.ndarray,
+    footprint_rotation: np.ndarray,
+    xaxis: np.ndarray,
+    xanchor: np.ndarray,
+    subtree_com: np.ndarray,
+    v_ref: np.ndarray,
+    speed_limits: np.ndarray,
+    n_base: int,
+    wheel_map: np.ndarray,
+    wheel_dof: np.ndarray,
+    wheel_integral: np.ndarray,
+    integral_limit: np.ndarray,
+    integral_time: float,
+    arm_dof: np.ndarray,
+    arm_joint: np.ndarray,
+    arm_body: np.ndarray,
+    slide: np.ndarray,
+    weight: np.ndarray,
+    inverse_time_constants: np.ndarray,
+    damping: np.ndarray,
+    friction: np.ndarray,
+    friction_speed: float,
+    compensated: np.ndarray,
+    h: float,
+    gainprm: np.ndarray,
+    biasprm: np.ndarray,
+    ctrl: np.ndarray,
+) -> None:
+    r"""Set the wheel and arm servos' gains and commands for one MuJoCo step.
+
+    Wheels (actuators ``0 .. n_w - 1``): ``w_ref = W clip(v_ref[:n_base])``, the integral
+    ``e += h (w_ref - w)`` clamped at ``integral_limit``, command ``w_ref + e / T_i``.
+
+    Arm joint ``j`` (actuator ``n_w + j``): the stiffness of :class:`pbvs_pin.servo.ServoModel`,
+    ``K_j = (sum_k |M_v,jk|) / T_j``, with ``M_v = S^T M S`` in the actuated velocities
+    ``[u, omega, arm]`` (``u`` moves the free joint along the heading, ``omega`` turns it about z;
+    the wheels, on other branches, do not couple with the arm), is the velocity actuator's gain
+    (``gainprm = K``, ``biasprm[2] = -K``); its command is
+    ``r + (D r + F tanh(r / w) + G g) / K`` with ``r`` the clipped reference and the friction
+    band ``w = max(v_s, F h / M_jj)`` of :func:`pbvs_pin.servo.servo_step`.
+
+    Args:
+        mass: MuJoCo's dense mass matrix (``mj_fullM``). Shape (nv, nv).
+        qvel: ``data.qvel``. Shape (nv,).
+        footprint_rotation: ``data.xmat`` of the free body (row-major 3 x 3). Shape (9,).
+        xaxis: ``data.xaxis``. Shape (njnt, 3).
+        xanchor: ``data.xanchor``. Shape (njnt, 3).
+        subtree_com: ``data.subtree_com``. Shape (nbody, 3).
+        v_ref: Velocity reference ``[u, omega, arm rates]``. Shape (n,).
+        speed_limits: Largest reference per velocity. Shape (n,).
+        n_base: Number of platform velocities.
+        wheel_map: ``W``, wheel speeds from ``[u, omega]``. Shape (n_w, n_base).
+        wheel_dof: The wheels' dof addresses. Shape (n_w,).
+        wheel_integral: Updated: the wheels' integral ``e`` [rad]. Shape (n_w,).
+        integral_limit: Its clamp [rad]. Shape (n_w,).
+        integral_time: ``T_i`` [s].
+        arm_dof: The arm joints' dof addresses. Shape (n_arm,).
+        arm_joint: Joint id of each arm joint (:func:`arm_gravity_load`). Shape (n_arm,).
+        arm_body: Its body id. Shape (n_arm,).
+        slide: Whether it is a slide joint. Shape (n_arm,).
+        weight: ``m_j g_0`` of its subtree [N]. Shape (n_arm,).
+        inverse_time_constants: ``1 / T_j`` of the arm servos. Shape (n_arm,).
+        damping: ``D_j``. Shape (n_arm,).
+        friction: ``F_j``. Shape (n_arm,).
+        friction_speed: ``v_s``.
+        compensated: Diagonal of ``G`` (1.0 or 0.0). Shape (n_arm,).
+        h: Step [s].
+        gainprm: Written: ``model.actuator_gainprm``. Shape (nu, 10).
+        biasprm: Written: ``model.actuator_biasprm``. Shape (nu, 10).
+        ctrl: Written: ``data.ctrl``. Shape (nu,).
+    """
+    n_wheels = wheel_dof.shape[0]
+    for i in range(n_wheels):
+        wheel_ref = 0.0
+        for k in range(n_base):
+            wheel_ref += wheel_map[i, k] * min(max(v_ref[k], -speed_limits[k]), speed_limits[k])
+        error = wheel_integral[i] + h * (wheel_ref - qvel[wheel_dof[i]])
+        wheel_integral[i] = min(max(error, -integral_limit[i]), integral_limit[i])
+        ctrl[i] = wheel_ref + wheel_integral[i] / integral_time
+    n_arm = arm_dof.shape[0]
+    gravity = np.empty(n_arm)
+    arm_gravity_load(xaxis, xanchor, subtree_com, arm_joint, arm_body, slide, weight, gravity)
+    heading_x, heading_y = footprint_rotation[0], footprint_rotation[3]
+    norm = np.hypot(heading_x, heading_y)
+    for j in range(n_arm):
+        a = arm_dof[j]
+        row = abs((mass[a, 0] * heading_x + mass[a, 1] * heading_y) / norm) + abs(mass[a, 5])
+        for k in range(n_arm):
+            row += abs(mass[a, arm_dof[k]])
+        gain = inverse_time_constants[j] * row
+        limit = speed_limits[n_base + j]
+        reference = min(max(v_ref[n_base + j], -limit), limit)
+        width = max(friction_speed, friction[j] * h / mass[a, a])
+        feed_forward = (
+            damping[j] * reference
+            + friction[j] * np.tanh(reference / width)
+            + compensated[j] * gravity[j]
+        )
+        actuator = n_wheels + j
+        gainprm[actuator, 0] = gain
+        biasprm[actuator, 2] = -gain
+        ctrl[actuator] = reference + feed_forward / gain

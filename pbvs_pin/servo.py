@@ -48,23 +48,18 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-from pbvs_pin.dynamics import (
-    ARM_TIME_CONSTANT,
-    PIONEER_TIME_CONSTANTS,
-    DynamicTerms,
-    actuated_terms,
-    rigid_body_terms,
-)
+from pbvs_pin.dynamics import DynamicTerms, actuated_terms, rigid_body_terms
 from pbvs_pin.exceptions import GainError
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
 
-PLATFORM_TIME_CONSTANTS = PIONEER_TIME_CONSTANTS
+PLATFORM_TIME_CONSTANTS = (0.26, 0.23)
 """Time constants [s] of the platform's forward speed and yaw rate servos: a Pioneer's
-(Martins et al., 2008: 0.26 s and 0.23 s). A platform with other velocities repeats the first."""
+(Martins et al., 2008: theta1/theta4 and theta2/theta6 of the identified model, 0.26 s and
+0.23 s). A platform with other velocities repeats the first."""
 
-REVOLUTE_TIME_CONSTANT = ARM_TIME_CONSTANT
+REVOLUTE_TIME_CONSTANT = 0.02
 """Time constant [s] of a revolute arm joint's servo, 0.02 s (a hobby-grade or industrial arm
 servo tracks speed within a few tens of milliseconds)."""
 

@@ -27,7 +27,6 @@ from pbvs_pin import (
     ShapeError,
     TwoSphereFeatures,
     UrdfError,
-    VelocityLoop,
 )
 
 CYTON_URDF = URDF_DIR / "pioneer_cyton.urdf"
@@ -271,8 +270,6 @@ def test_mount_pose_of_wrong_length():
         (lambda: CameraIntrinsics(width=0), "width"),
         (lambda: TwoSphereFeatures(diameter=0.0), "diameter"),
         (lambda: ImagePointFeatures(0), "count"),
-        (lambda: VelocityLoop(np.array([1.0, -2.0]), np.zeros(2)), "gains"),
-        (lambda: VelocityLoop(np.array([1.0, 2.0]), np.array([0.0, -0.1])), "damping"),
     ],
 )
 def test_invalid_parameters_are_gain_errors(build, field):

@@ -8,14 +8,15 @@ import pinocchio as pin
 import pytest
 
 from pbvs_pin import MobileManipulator, load_robot
-from pbvs_pin.dynamics import ARM_TIME_CONSTANT, VelocityLoop
+from pbvs_pin.exceptions import GainError
 from pbvs_pin.mujoco_plant import MujocoPlant
+from pbvs_pin.servo import REVOLUTE_TIME_CONSTANT, ServoModel
 
 TWO_WHEELS = Path(__file__).parent / "data" / "two_wheel_platform.urdf"
 
 
-def _plant(robot):
-    return MujocoPlant(robot, VelocityLoop.from_time_constants(robot), robot.home())
+def _plant(robot, **options):
+    return MujocoPlant(robot, ServoModel.from_robot(robot), robot.home(), **options)
 
 
 def _run(plant, v_ref, seconds):
@@ -136,17 +137,49 @@ def test_skid_steer_platform_slips_when_turning():
 
 
 def test_arm_servo_reaches_its_speed_within_a_few_time_constants():
+    """The ServoModel's feed-forward of the URDF damping leaves no steady-state shortfall."""
     robot = load_robot("pioneer_cyton")
-    loop = VelocityLoop.from_time_constants(robot)
-    plant = MujocoPlant(robot, loop, robot.home())
+    plant = _plant(robot)
     index = robot.velocity_names.index("shoulder_yaw_joint")
     v_ref = np.zeros(robot.n)
     v_ref[index] = 0.5
-    _run(plant, v_ref, 5 * ARM_TIME_CONSTANT)
-    gain, damping = loop.gains[index], robot.model.damping[robot.model.nv - robot.n_arm]
-    steady = gain / (gain + damping) * 0.5  # the URDF's damping takes its share
-    assert plant.v[index] == pytest.approx(steady, rel=0.02)
-    assert plant.v[index] == pytest.approx(0.5, rel=0.05)
+    _run(plant, v_ref, REVOLUTE_TIME_CONSTANT)
+    assert 0.5 * (1 - np.exp(-1)) - 0.1 < plant.v[index] < 0.5
+    _run(plant, v_ref, 4 * REVOLUTE_TIME_CONSTANT)
+    assert plant.v[index] == pytest.approx(0.5, rel=0.01)
+
+
+def test_arm_servo_is_clipped_at_its_speed_limit():
+    robot = load_robot("pioneer_cyton")
+    plant = _plant(robot)
+    index = robot.velocity_names.index("shoulder_yaw_joint")
+    v_ref = np.zeros(robot.n)
+    v_ref[index] = 10.0 * robot.velocity_limits[index]
+    _run(plant, v_ref, 0.2)
+    assert plant.v[index] == pytest.approx(robot.velocity_limits[index], rel=0.01)
+
+
+def test_mass_scale_makes_the_true_robot_heavier():
+    """Twice the masses: every body's mass and inertia doubles."""
+    robot = load_robot("pioneer_cyton")
+    light, heavy = _plant(robot), _plant(robot, mass_scale=2.0)
+    assert np.allclose(heavy.model.body_mass, 2.0 * light.model.body_mass)
+    assert np.allclose(heavy.model.body_inertia, 2.0 * light.model.body_inertia)
+
+
+def test_settling_leaves_the_robot_at_rest_on_the_ground():
+    robot = load_robot("pioneer_cyton")
+    plant = _plant(robot, settle=0.3)
+    assert np.abs(plant.v).max() < 1e-3
+    assert np.abs(plant.q - robot.home()).max() < 1e-3
+    assert plant.data.ncon >= len(plant.axle.wheel_joints)
+
+
+@pytest.mark.parametrize(("option", "value"), [("mass_scale", 0.0), ("settle", -1.0)])
+def test_bad_options_are_gain_errors(option, value):
+    robot = load_robot("pioneer_cyton")
+    with pytest.raises(GainError, match=option):
+        _plant(robot, **{option: value})
 
 
 def test_step_time_of_the_reference_robot():
@@ -163,3 +196,12 @@ def test_step_time_of_the_reference_robot():
         plant.step(v_ref)
         times.append(time.perf_counter() - start)
     assert np.median(times) < 200e-6  # a loose bound for shared CI machines
+
+
+def test_an_inertia_mujoco_refuses_is_replaced_by_its_diagonal():
+    """TIAGo's antenna links (1e-6 kg) have products of inertia above their moments: Pinocchio
+    takes them, MuJoCo refuses them; the plant compiles with their diagonal."""
+    robot = load_robot("tiago")
+    plant = _plant(robot)
+    assert np.all(plant.model.body_inertia[plant.model.body_mass > 0] > 0)
+    assert plant.model.nu == len(plant.axle.wheel_joints) + robot.n_arm

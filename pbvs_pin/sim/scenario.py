@@ -32,6 +32,7 @@ from pbvs_pin.sim.sections import (
     LaserSection,
     ModelErrorSection,
     MotionSection,
+    PlantSection,
     PlatformSection,
     RobotSection,
     SecondarySection,
@@ -60,8 +61,8 @@ class Scenario(Section):
         name: The scenario's name; the file's stem when the file gives none.
         description: One line on what the run shows.
         duration: Simulated time [s].
-        robot, model_error, camera, target, motion, estimator, controller, compensation,
-            secondary, laser, platform, simulation: The tables, see
+        robot, model_error, plant, camera, target, motion, estimator, controller,
+            compensation, secondary, laser, platform, simulation: The tables, see
             :mod:`pbvs_pin.sim.sections`.
         obstacles: The ``[[obstacles]]`` tables as obstacles.
     """
@@ -73,6 +74,7 @@ class Scenario(Section):
     duration: float = key(30.0, "Simulated time [s].", sign=Sign.POSITIVE)
     robot: RobotSection = field(default_factory=RobotSection)
     model_error: ModelErrorSection = field(default_factory=ModelErrorSection)
+    plant: PlantSection = field(default_factory=PlantSection)
     camera: CameraSection = field(default_factory=CameraSection)
     target: TargetSection = field(default_factory=TargetSection)
     motion: MotionSection = field(default_factory=MotionSection)

@@ -145,9 +145,8 @@ def is_number(x: Any) -> bool:
 
 def _numbers(value: Any) -> list:
     """Every number of a scalar, an array or an array of arrays."""
-    if not isinstance(value, tuple):
-        return [value]
-    return [y for x in value for y in (x if isinstance(x, tuple) else (x,))]
+    rows = value if isinstance(value, tuple) else ((value,),)
+    return [y for x in rows for y in (x if isinstance(x, tuple) else (x,))]
 
 
 def _checked(spec: Field, value: Any) -> Any:
@@ -331,13 +330,23 @@ class RobotSection(Section):
 
 @dataclass(frozen=True)
 class ModelErrorSection(Section):
-    """``[model_error]``: how the controller's model differs from the true robot."""
+    """``[model_error]``: how the controller's model differs from the true robot (the plant)."""
 
     TABLE: ClassVar[str] = "model_error"
     kinematic_scale: float = key(
         1.0, "Factor on the model's link lengths (1.2: 20 % kinematic error).", sign=POSITIVE
     )
-    mass_scale: float = key(1.0, "Factor on the model's masses and inertias.", sign=POSITIVE)
+    mass_scale: float = key(1.0, "Factor on the true robot's masses and inertias.", sign=POSITIVE)
+
+
+@dataclass(frozen=True)
+class PlantSection(Section):
+    """``[plant]``: the true robot's physics, in Pinocchio or in MuJoCo (wheels on a floor)."""
+
+    TABLE: ClassVar[str] = "plant"
+    engine: str = key(
+        "pinocchio", "Physics: pinocchio (fast, no slip), mujoco.", choices=("pinocchio", "mujoco")
+    )
 
 
 MAX_IMAGE_PX = 100_000
@@ -583,7 +592,7 @@ class SimulationSection(Section):
 
 
 SECTIONS: tuple[type[Section], ...] = (
-    RobotSection, ModelErrorSection, CameraSection, TargetSection, MotionSection,
+    RobotSection, ModelErrorSection, PlantSection, CameraSection, TargetSection, MotionSection,
     EstimatorSection, ControllerSection, CompensationSection, SecondarySection, LaserSection,
     PlatformSection, SimulationSection,
 )  # fmt: skip

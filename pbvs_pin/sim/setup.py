@@ -9,8 +9,8 @@ visibility at the start) is checked here and reported as a ScenarioError naming 
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -36,6 +36,12 @@ from pbvs_pin.sim.scenario import Scenario
 from pbvs_pin.sim.sections import MotionSection
 from pbvs_pin.sim.targets import LineThenStop, Still, TargetMotion, TwoSphereTarget, Weave
 from pbvs_pin.sim.vision import CameraSensor
+
+if TYPE_CHECKING:
+    from pbvs_pin.mujoco_plant import MujocoPlant
+
+SETTLE_TIME = 0.5
+"""Time [s] a MuJoCo plant stands still before ``t = 0``, its wheels settling on the floor."""
 
 
 def _motion(spec: MotionSection) -> TargetMotion:
@@ -77,7 +83,7 @@ class Setup:
     scenario: Scenario
     robot: MobileManipulator
     model: MobileManipulator
-    plant: Plant
+    plant: Plant | MujocoPlant
     target: TwoSphereTarget
     features: TwoSphereFeatures
     sensor: CameraSensor
@@ -127,9 +133,8 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
             robot = copy.copy(robot)
             robot.camera = camera
         q0 = robot.home()
-    errors = scenario.model_error
-    model = robot.with_model_error(errors.kinematic_scale, errors.mass_scale)
-    plant = Plant(robot, ServoModel.from_robot(robot), q0, scenario.simulation.plant_dt)
+    model = robot.with_model_error(scenario.model_error.kinematic_scale)
+    plant = _plant(scenario, robot, q0)
     target_spec = scenario.target
     features = TwoSphereFeatures(target_spec.diameter)
     xi0 = np.asarray(target_spec.xi0, dtype=float)
@@ -160,6 +165,26 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
         np.asarray(target_spec.xi_d, dtype=float),
         scenario.estimator.filter(), robot_given,
     )  # fmt: skip
+
+
+def _plant(scenario: Scenario, robot: MobileManipulator, q0: np.ndarray) -> Plant | MujocoPlant:
+    """The true robot's physics (``plant.engine``), ``model_error.mass_scale`` times heavier.
+
+    The servos were tuned on the nominal robot (the URDF's masses, the controller's model):
+    their stiffness ``K = sum |M_v,nominal| / T`` is ``sum |M_v,true| / (s T)`` on a robot whose
+    masses are ``s`` times the nominal, so the true plant's servos have time constants ``s T``.
+    """
+    mass_scale = scenario.model_error.mass_scale
+    servo = ServoModel.from_robot(robot)
+    if mass_scale != 1.0:
+        servo = replace(servo, time_constants=mass_scale * servo.time_constants)
+    dt = scenario.simulation.plant_dt
+    if scenario.plant.engine == "mujoco":
+        from pbvs_pin.mujoco_plant import MujocoPlant  # MuJoCo is loaded only when asked for
+
+        return MujocoPlant(robot, servo, q0, dt, mass_scale=mass_scale, settle=SETTLE_TIME)
+    true_robot = robot if mass_scale == 1.0 else robot.with_model_error(1.0, mass_scale)
+    return Plant(true_robot, servo, q0, dt)
 
 
 def _start(scenario: Scenario, robot: MobileManipulator) -> np.ndarray:
