@@ -106,6 +106,7 @@ def simulate(
                 setup.sensor.capture(
                     t, setup.robot.camera_pose(plant.q), setup.target.centres(t), plant.q
                 )
+            setup.sensor.stamp(t, plant.q)  # frames whose exposure delay has elapsed
             frame = setup.sensor.deliver(t)
             if frame is not None:
                 perception.take(frame)

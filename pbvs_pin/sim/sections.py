@@ -349,7 +349,7 @@ MIN_FIELD_OF_VIEW_DEG = 0.1
 
 @dataclass(frozen=True)
 class CameraSection(Section):
-    """``[camera]``: intrinsics and the image stream."""
+    """``[camera]``: intrinsics and the image stream with its faults (pbvs_pin.sim.vision)."""
 
     TABLE: ClassVar[str] = "camera"
     focal_px: float = key(600.0, "Focal length f [px].", sign=POSITIVE)
@@ -357,9 +357,13 @@ class CameraSection(Section):
     height: int = key(582, "Image height [px].", sign=POSITIVE)
     rate: float = key(30.0, "Frame rate [Hz].", sign=POSITIVE)
     latency: float = key(0.0, "Delay from capture to delivery [s].", sign=NON_NEGATIVE)
-    noise_px: float = key(
-        0.0, "Standard deviation of the image-point noise [px].", sign=NON_NEGATIVE
-    )
+    noise_px: float = key(0.0, "Standard deviation of the pixel noise [px].", sign=NON_NEGATIVE)
+    drop_probability: float = key(0.0, "Chance a frame is lost, in [0, 1).", sign=NON_NEGATIVE)
+    occlusion_starts: tuple[float, ...] = key((), "Occlusion starts [s].", sign=NON_NEGATIVE)
+    occlusion_rate: float = key(0.0, "Random occlusion episodes per second.", sign=NON_NEGATIVE)
+    occlusion_duration: float = key(0.0, "Length of an occlusion [s].", sign=NON_NEGATIVE)
+    latency_jitter: float = key(0.0, "Largest extra (uniform) latency [s].", sign=NON_NEGATIVE)
+    exposure_delay: float = key(0.0, "Exposure to timestamp delay [s].", sign=NON_NEGATIVE)
 
     def intrinsics(self) -> CameraIntrinsics:
         """The pinhole intrinsics."""
@@ -369,8 +373,11 @@ class CameraSection(Section):
         """Valid, plausible intrinsics (GainError naming the key).
 
         The image is at most :data:`MAX_IMAGE_PX` px a side and the field of view at least
-        :data:`MIN_FIELD_OF_VIEW_DEG` across the larger side.
+        :data:`MIN_FIELD_OF_VIEW_DEG` across the larger side; a frame is dropped with a
+        probability below 1.
         """
+        if self.drop_probability >= 1:
+            raise GainError(f"expected < 1, got {self.drop_probability:g}", "drop_probability")
         for name in ("width", "height"):
             if getattr(self, name) > MAX_IMAGE_PX:
                 raise GainError(
