@@ -87,7 +87,7 @@ def test_exposure_delay_stamps_the_frame_later_with_the_encoders_of_the_stamp():
 
 
 def test_a_certain_drop_is_refused_naming_the_key():
-    with pytest.raises(ScenarioError, match="camera.drop_probability"):
+    with pytest.raises(ScenarioError, match=r"camera\.drop_probability"):
         load_scenario("experiment1").with_values(**{"camera.drop_probability": 1.0})
 
 

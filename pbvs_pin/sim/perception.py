@@ -1,4 +1,22 @@
-"""The controller's view of the target: the newest delivered camera frame and the estimate."""
+"""The controller's view of the target: the newest delivered camera frame and the estimate.
+
+**Prediction** (an extension of the paper, issue 13). Between the newest frame showing the
+target (timestamp ``t_k``, encoders ``q_k``) and now ``(t, q)``, the features move by eq. (3),
+``xi_dot = J(q) q_dot + J_o(q) phat_dot``. With the velocity estimate held constant over the
+interval, its integral along the measured joint path has a closed form: back-project the
+frame's points with their depths (eq. 2 inverted), place them in the world with the model's
+camera pose at ``q_k``, move them by ``phat_dot (t - t_k)``, and project them (eq. 2) from
+the model's camera pose at ``q``. It needs no integration step and only the delay the
+timestamps give (an exposure delay, invisible in them, is not compensated).
+
+- ``estimator.predict``: every control step servoes on the newest frame brought up to now
+  (latency compensation, which also removes the staleness between frames);
+- ``estimator.hold`` [s]: when a frame arrives without the target, the loop keeps servoing on
+  the prediction until ``hold`` seconds after the newest frame that showed it; then the
+  command is zero and the dynamic compensation brakes the robot to a stop (as without
+  ``hold``). When the target reappears the measurement replaces the prediction; the two
+  differ only by the prediction's error, so the command does not jump.
+"""
 
 from __future__ import annotations
 
@@ -10,14 +28,26 @@ from pbvs_pin.sim.vision import Frame
 
 
 class Perception:
-    """The controller's view of the target: the newest delivered frame, and the estimate."""
+    """The controller's view of the target: the newest delivered frame, and the estimate.
+
+    Attributes:
+        measurement: The newest measurement of the target (None before the first).
+        lost: The newest delivered frame did not show the target.
+        used: What the controller servoes on now (set by :meth:`current`; None: nothing).
+        predicting: ``used`` is a prediction rather than the newest measurement.
+    """
 
     def __init__(self, setup: Setup) -> None:
         self.setup = setup
-        self.exact = setup.scenario.estimator.kind == "exact"
+        spec = setup.scenario.estimator
+        self.exact = spec.kind == "exact"
+        self.predict, self.hold = spec.predict, spec.hold
         self.filter = setup.estimator
         self.measurement: ImageMeasurement | None = None
+        self.frame: Frame | None = None
         self.lost = False
+        self.used: ImageMeasurement | None = None
+        self.predicting = False
 
     def take(self, frame: Frame) -> None:
         """Use a delivered frame: keep its measurement and update the filter."""
@@ -26,6 +56,7 @@ class Perception:
             return
         self.lost = False
         setup = self.setup
+        self.frame = frame
         self.measurement = frame.measurement(setup.model.camera, setup.target.diameter)
         pose = setup.model.camera_pose(frame.q)
         in_camera = setup.model.camera.back_project(frame.points, self.measurement.depths)
@@ -36,3 +67,28 @@ class Perception:
         if self.exact:
             return self.setup.target.motion.velocity(t)
         return self.filter.velocity
+
+    def current(self, t: float, q: np.ndarray) -> ImageMeasurement | None:
+        """What the controller servoes on at ``t``: the measurement, its prediction, or None.
+
+        Args:
+            t: Time [s].
+            q: Encoder configuration now. Shape (nq,).
+        """
+        held = self.lost and self.hold > 0 and t - self.frame.time <= self.hold
+        self.predicting = self.frame is not None and (held or (self.predict and not self.lost))
+        if self.predicting:
+            self.used = self.predicted(t, q)
+        else:
+            self.used = None if self.lost else self.measurement
+        return self.used
+
+    def predicted(self, t: float, q: np.ndarray) -> ImageMeasurement:
+        """The newest measurement brought up to ``(t, q)`` along eq. (3) (module docstring)."""
+        model, frame = self.setup.model, self.frame
+        in_camera = model.camera.back_project(frame.points, self.measurement.depths)
+        then = model.camera_pose(frame.q)
+        world = in_camera @ then.rotation.T + then.translation
+        world = world + self.velocity(t) * (t - frame.time)
+        image, depths = model.camera.project_world(model.camera_pose(q), world)
+        return ImageMeasurement(image, depths)

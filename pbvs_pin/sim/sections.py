@@ -441,6 +441,8 @@ class EstimatorSection(Section):
     )
     alpha: float = key(0.5, "Position gain of the alpha-beta filter, 0 < alpha <= 1.")
     beta: float = key(0.1, "Velocity gain of the alpha-beta filter, 0 < beta < 4 - 2 alpha.")
+    predict: bool = key(False, "Bring each frame up to now along eq. (3) (sim.perception).")
+    hold: float = key(0.0, "Servo on predictions this long after a loss [s].", sign=NON_NEGATIVE)
 
     def filter(self) -> AlphaBetaFilter:
         """A fresh alpha-beta filter with these gains."""
