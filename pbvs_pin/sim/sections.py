@@ -373,8 +373,7 @@ class CameraSection(Section):
         """Valid, plausible intrinsics (GainError naming the key).
 
         The image is at most :data:`MAX_IMAGE_PX` px a side and the field of view at least
-        :data:`MIN_FIELD_OF_VIEW_DEG` across the larger side; a frame is dropped with a
-        probability below 1.
+        :data:`MIN_FIELD_OF_VIEW_DEG` across the larger side; drop_probability < 1.
         """
         if self.drop_probability >= 1:
             raise GainError(f"expected < 1, got {self.drop_probability:g}", "drop_probability")
@@ -419,9 +418,7 @@ class MotionSection(Section):
         "still, line_then_stop (velocity until stop_time) or weave (line plus a sine).",
         choices=("still", "line_then_stop", "weave"),
     )
-    velocity: tuple[float, ...] = key(
-        (0.0, 0.0, 0.0), "Velocity in the world frame [m/s].", length=3
-    )
+    velocity: tuple[float, ...] = key((0.0, 0.0, 0.0), "Velocity in the world [m/s].", length=3)
     amplitude: tuple[float, ...] = key(
         (0.0, 0.0, 0.0), "Half peak-to-peak of the weave per world axis [m].", length=3
     )
@@ -443,13 +440,16 @@ class EstimatorSection(Section):
     beta: float = key(0.1, "Velocity gain of the alpha-beta filter, 0 < beta < 4 - 2 alpha.")
     predict: bool = key(False, "Bring each frame up to now along eq. (3) (sim.perception).")
     hold: float = key(0.0, "Servo on predictions this long after a loss [s].", sign=NON_NEGATIVE)
+    smoothing: float = key(1.0, "Weight of a frame against its prediction, <= 1.", sign=POSITIVE)
 
     def filter(self) -> AlphaBetaFilter:
         """A fresh alpha-beta filter with these gains."""
         return AlphaBetaFilter(self.alpha, self.beta)
 
     def validate(self) -> None:
-        """The filter's gains must be stable (GainError naming alpha or beta)."""
+        """Stable filter gains (GainError naming alpha or beta), smoothing <= 1."""
+        if self.smoothing > 1:
+            raise GainError(f"expected <= 1, got {self.smoothing:g}", "smoothing")
         self.filter()
 
 
