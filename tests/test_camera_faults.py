@@ -118,3 +118,8 @@ def test_every_fault_key_moves_the_log(plain_log, name):
     log = simulate(load_scenario("experiment1").with_values(**values))
     assert not np.array_equal(log["xi"], plain_log["xi"], equal_nan=True)
     assert not np.array_equal(log["q"], plain_log["q"])
+
+
+def test_smoothing_above_one_is_refused_naming_the_key():
+    with pytest.raises(ScenarioError, match=r"estimator\.smoothing"):
+        load_scenario("experiment1").with_values(**{"estimator.smoothing": 1.5})

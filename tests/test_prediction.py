@@ -113,3 +113,25 @@ def test_4px_noise_holds_the_target_with_smoothing(experiment):
     final = t >= t[-1] - 5.0
     assert np.abs(log["xi_true"][final] - log["xi_d"][final]).max() < 10.0
     assert not np.any(log["target_lost"])
+
+
+ALL_FAULTS = {
+    "camera.latency": 0.1, "camera.noise_px": 4.0, "camera.drop_probability": 0.3,
+    "camera.occlusion_starts": (8.0,), "camera.occlusion_duration": 1.0,
+}  # fmt: skip
+"""Issue 13's four faults together: 100 ms latency, 4 px noise, 30 % drops, a 1 s occlusion."""
+
+COMPENSATED = {"estimator.predict": True, "estimator.hold": 1.5, "estimator.smoothing": 0.2}
+"""Latency compensation, a 1.5 s hold through losses and smoothing 0.2 (about 1 Hz)."""
+
+
+@pytest.mark.parametrize("experiment", ["experiment1", "experiment2"])
+def test_all_four_faults_together_stay_bounded_within_the_joint_limits(experiment):
+    """Issue 13's acceptance: below 25 px over the last 5 s, no arm joint past its limits."""
+    log = simulate(load_scenario(experiment).with_values(**ALL_FAULTS, **COMPENSATED))
+    t = log["t"]
+    final = t >= t[-1] - 5.0
+    assert np.abs(log["xi_true"][final] - log["xi_d"][final]).max() < 25.0
+    lower, upper = (np.array(side, dtype=float) for side in log.meta["arm_position_limits"])
+    assert np.all(log["arm"] >= lower - 1e-9) and np.all(log["arm"] <= upper + 1e-9)
+    assert not np.any(log["target_lost"][final])
