@@ -280,6 +280,7 @@ class RunRecorder:
         gains = setup.controller.gains
         meta = {
             "scenario": scenario.name,
+            "description": scenario.description,
             "source": scenario.source,
             **setup.robot_meta(),
             "law": scenario.controller.law,
