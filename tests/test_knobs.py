@@ -19,6 +19,7 @@ BASE = {"duration": 2.0}
 OBSTACLE = {"secondary.obstacle_avoidance": True, "secondary.d0": 3.0}
 NEAR_LIMIT = {"robot.initial_arm": [0.0, 0.0, 0.55]}  # 0.05 rad below the elbow's upper limit
 ROLLING = {"robot.name": "pioneer_panda"}
+OCCLUDED = {"camera.occlusion_starts": [0.5], "camera.occlusion_duration": 0.5}
 
 CASES = {  # key: (context, new value)
     "name": ({}, "renamed"),
@@ -34,6 +35,12 @@ CASES = {  # key: (context, new value)
     "camera.rate": ({}, 25.0),
     "camera.latency": ({}, 0.05),
     "camera.noise_px": ({}, 2.0),
+    "camera.drop_probability": ({}, 0.3),
+    "camera.occlusion_starts": ({"camera.occlusion_duration": 0.5}, [0.5]),
+    "camera.occlusion_rate": ({"camera.occlusion_duration": 0.5}, 2.0),
+    "camera.occlusion_duration": ({"camera.occlusion_starts": [0.5]}, 0.5),
+    "camera.latency_jitter": ({}, 0.05),
+    "camera.exposure_delay": ({}, 0.05),
     "target.diameter": ({}, 0.06),
     "target.separation": ({}, 0.12),
     "target.xi0": ({}, [-100.0, 10.0, -90.0]),
@@ -46,6 +53,9 @@ CASES = {  # key: (context, new value)
     "estimator.kind": ({}, "exact"),
     "estimator.alpha": ({}, 0.3),
     "estimator.beta": ({}, 0.2),
+    "estimator.predict": ({"camera.latency": 0.1}, True),
+    "estimator.hold": (OCCLUDED, 1.0),
+    "estimator.smoothing": ({}, 0.5),
     "controller.law": ({}, "ibvs"),
     "controller.k": ({}, [0.3]),
     "controller.k1": ({}, [0.5, 0.8, 0.2, 0.2, 0.2]),

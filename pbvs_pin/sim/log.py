@@ -42,13 +42,15 @@ CHANNELS = (
     "clearance", "manipulability", "storage", "storage_v2", "nu", "passivity_input",
     "lambda_min", "gamma", "saturated", "damped", "target_lost", "valid", "loop_gain",
     "gain_limited", "upright_angle", "nu_true", "storage_true", "passivity_input_true",
+    "xi_measured", "predicted",
 )  # fmt: skip
 """Names of the arrays in a log."""
 
 RECORDED = (
     "t", "xi", "u", "v_ref", "v", "q", "target_estimate", "target_velocity_estimate",
     "obstacle_distance", "obstacle_angle", "storage", "storage_v2", "nu", "saturated", "damped",
-    "target_lost", "valid", "loop_gain", "gain_limited", "upright_angle",
+    "target_lost", "valid", "loop_gain", "gain_limited", "upright_angle", "xi_measured",
+    "predicted",
 )  # fmt: skip
 """Channels copied in the loop; :meth:`RunRecorder.finish` derives the others."""
 
@@ -227,12 +229,13 @@ class RunRecorder:
             ("saturated", output.saturated), ("damped", output.damped),
             ("target_lost", perception.lost), ("valid", output.valid),
             ("loop_gain", output.loop_gain), ("gain_limited", output.gain_limited),
-            ("upright_angle", output.upright_angle),
+            ("upright_angle", output.upright_angle), ("predicted", perception.predicting),
         ):  # fmt: skip
             rows[name].append(np.array(value, copy=True))
-        rows["xi"].append(
-            setup.features.features(measurement) if seen else np.full(setup.features.size, np.nan)
-        )
+        unseen = np.full(setup.features.size, np.nan)
+        used = perception.used
+        rows["xi"].append(setup.features.features(used) if used is not None else unseen)
+        rows["xi_measured"].append(setup.features.features(measurement) if seen else unseen)
         r, n = setup.features.size, setup.model.n
         self._jacobians.append(np.array(jacobians[0]) if jacobians else np.full((r, n), np.nan))
         self._object_jacobians.append(

@@ -106,18 +106,19 @@ def simulate(
                 setup.sensor.capture(
                     t, setup.robot.camera_pose(plant.q), setup.target.centres(t), plant.q
                 )
+            setup.sensor.stamp(t, plant.q)  # frames whose exposure delay has elapsed
             frame = setup.sensor.deliver(t)
             if frame is not None:
                 perception.take(frame)
             if setup.obstacles and step % laser_every == 0:
                 laser_reading = _laser(setup, plant.q)
                 laser_array = np.array(laser_reading)
-            seen = perception.measurement is not None and not perception.lost
+            measurement = perception.current(t, plant.q)
+            seen = measurement is not None
             if fused is not None and seen:
                 _, v_ref, v2 = fused.step(
-                    plant.q, plant.v, perception.measurement, perception.velocity(t), laser_array,
-                    control_dt,
-                )  # fmt: skip
+                    plant.q, plant.v, measurement, perception.velocity(t), laser_array, control_dt
+                )
             else:
                 if fused is not None:
                     fused.restart_derivative()  # the command derivative restarts after a loss
@@ -194,12 +195,12 @@ def _control_step(
     t: float,
     dt: float,
 ):
-    """Kinematic controller on the newest measurement; zero command when the target is lost."""
+    """Kinematic controller on the current measurement; zero command when there is none."""
     model = setup.model
     secondary_state = SecondaryInput(model.arm_positions(q), laser[0], laser[1], dt)
     secondary = secondary_vector(setup.objectives, secondary_state, model.n_base, model.n)
-    measurement = perception.measurement
-    if measurement is None or perception.lost:
+    measurement = perception.current(t, q)
+    if measurement is None:
         return setup.controller.zero_output(setup.features.size), None
     camera_jacobian = model.camera_jacobian_unchecked(q)
     rotation = model.data.oMf[model.camera_frame_id].rotation

@@ -358,7 +358,7 @@ MIN_FIELD_OF_VIEW_DEG = 0.1
 
 @dataclass(frozen=True)
 class CameraSection(Section):
-    """``[camera]``: intrinsics and the image stream."""
+    """``[camera]``: intrinsics and the image stream with its faults (pbvs_pin.sim.vision)."""
 
     TABLE: ClassVar[str] = "camera"
     focal_px: float = key(600.0, "Focal length f [px].", sign=POSITIVE)
@@ -366,9 +366,13 @@ class CameraSection(Section):
     height: int = key(582, "Image height [px].", sign=POSITIVE)
     rate: float = key(30.0, "Frame rate [Hz].", sign=POSITIVE)
     latency: float = key(0.0, "Delay from capture to delivery [s].", sign=NON_NEGATIVE)
-    noise_px: float = key(
-        0.0, "Standard deviation of the image-point noise [px].", sign=NON_NEGATIVE
-    )
+    noise_px: float = key(0.0, "Standard deviation of the pixel noise [px].", sign=NON_NEGATIVE)
+    drop_probability: float = key(0.0, "Chance a frame is lost, in [0, 1).", sign=NON_NEGATIVE)
+    occlusion_starts: tuple[float, ...] = key((), "Occlusion starts [s].", sign=NON_NEGATIVE)
+    occlusion_rate: float = key(0.0, "Random occlusion episodes per second.", sign=NON_NEGATIVE)
+    occlusion_duration: float = key(0.0, "Length of an occlusion [s].", sign=NON_NEGATIVE)
+    latency_jitter: float = key(0.0, "Largest extra (uniform) latency [s].", sign=NON_NEGATIVE)
+    exposure_delay: float = key(0.0, "Exposure to timestamp delay [s].", sign=NON_NEGATIVE)
 
     def intrinsics(self) -> CameraIntrinsics:
         """The pinhole intrinsics."""
@@ -378,8 +382,10 @@ class CameraSection(Section):
         """Valid, plausible intrinsics (GainError naming the key).
 
         The image is at most :data:`MAX_IMAGE_PX` px a side and the field of view at least
-        :data:`MIN_FIELD_OF_VIEW_DEG` across the larger side.
+        :data:`MIN_FIELD_OF_VIEW_DEG` across the larger side; drop_probability < 1.
         """
+        if self.drop_probability >= 1:
+            raise GainError(f"expected < 1, got {self.drop_probability:g}", "drop_probability")
         for name in ("width", "height"):
             if getattr(self, name) > MAX_IMAGE_PX:
                 raise GainError(
@@ -421,9 +427,7 @@ class MotionSection(Section):
         "still, line_then_stop (velocity until stop_time) or weave (line plus a sine).",
         choices=("still", "line_then_stop", "weave"),
     )
-    velocity: tuple[float, ...] = key(
-        (0.0, 0.0, 0.0), "Velocity in the world frame [m/s].", length=3
-    )
+    velocity: tuple[float, ...] = key((0.0, 0.0, 0.0), "Velocity in the world [m/s].", length=3)
     amplitude: tuple[float, ...] = key(
         (0.0, 0.0, 0.0), "Half peak-to-peak of the weave per world axis [m].", length=3
     )
@@ -443,13 +447,18 @@ class EstimatorSection(Section):
     )
     alpha: float = key(0.5, "Position gain of the alpha-beta filter, 0 < alpha <= 1.")
     beta: float = key(0.1, "Velocity gain of the alpha-beta filter, 0 < beta < 4 - 2 alpha.")
+    predict: bool = key(False, "Bring each frame up to now along eq. (3) (sim.perception).")
+    hold: float = key(0.0, "Servo on predictions this long after a loss [s].", sign=NON_NEGATIVE)
+    smoothing: float = key(1.0, "Weight of a frame against its prediction, <= 1.", sign=POSITIVE)
 
     def filter(self) -> AlphaBetaFilter:
         """A fresh alpha-beta filter with these gains."""
         return AlphaBetaFilter(self.alpha, self.beta)
 
     def validate(self) -> None:
-        """The filter's gains must be stable (GainError naming alpha or beta)."""
+        """Stable filter gains (GainError naming alpha or beta), smoothing <= 1."""
+        if self.smoothing > 1:
+            raise GainError(f"expected <= 1, got {self.smoothing:g}", "smoothing")
         self.filter()
 
 

@@ -35,7 +35,7 @@ from pbvs_pin.sim.obstacles import Laser, Obstacle
 from pbvs_pin.sim.scenario import Scenario
 from pbvs_pin.sim.sections import MotionSection
 from pbvs_pin.sim.targets import LineThenStop, Still, TargetMotion, TwoSphereTarget, Weave
-from pbvs_pin.sim.vision import CameraSensor
+from pbvs_pin.sim.vision import FAULT_STREAM, CameraFaults, CameraSensor
 
 if TYPE_CHECKING:
     from pbvs_pin.mujoco_plant import MujocoPlant
@@ -145,7 +145,14 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
     _check_start_visible(scenario, robot, q0, target, features, xi0)
     rng = np.random.default_rng(scenario.simulation.seed)
     spec = scenario.camera
-    sensor = CameraSensor(camera, target.diameter, spec.rate, spec.latency, spec.noise_px, rng)
+    faults = CameraFaults(
+        spec.drop_probability, spec.occlusion_starts, spec.occlusion_rate,
+        spec.occlusion_duration, spec.latency_jitter, spec.exposure_delay,
+    )  # fmt: skip
+    fault_rng = np.random.default_rng([scenario.simulation.seed, FAULT_STREAM])
+    sensor = CameraSensor(
+        camera, target.diameter, spec.rate, spec.latency, spec.noise_px, rng, faults, fault_rng
+    )
     controller = _controller(scenario, model)
     comp = scenario.compensation
     compensator = DynamicCompensator(

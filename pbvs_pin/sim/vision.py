@@ -1,13 +1,27 @@
-"""The simulated camera: frames at a rate, pixel noise, latency, image bounds.
+"""The simulated camera: frames at a rate, pixel noise, latency, image bounds, faults.
 
 A frame holds the image coordinates and apparent diameters of both spheres, measured on the
-true robot and target, and the encoder configuration at capture time. The controller only
+true robot and target, and the encoder configuration at its timestamp. The controller only
 ever sees frames (after their latency) and encoders.
+
+The faults a real camera brings (issue 13), each off by default and drawn from a generator of
+its own (seeded from the scenario's seed) so that the pixel noise of a run without faults is
+unchanged:
+
+- **frame drops**: each frame is lost with probability ``drop_probability``; nothing is
+  delivered for it, the controller keeps its previous frame;
+- **occlusion**: during an episode the frame arrives without the target (``visible`` false);
+  episodes start at given times, and/or at random (a Poisson process of ``occlusion_rate``
+  episodes per second), each lasting ``occlusion_duration``;
+- **latency jitter**: each frame's transport delay is ``latency`` plus a uniform draw in
+  ``[0, latency_jitter]``; a frame overtaken by a newer delivered one is discarded;
+- **exposure delay**: the image shows the scene ``exposure_delay`` before its timestamp and
+  encoder reading (the camera stamps the end of readout); unlike the latency, this delay is
+  invisible in the timestamps.
 """
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,17 +30,20 @@ from pbvs_pin.camera import MIN_DEPTH, CameraIntrinsics
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.features import ImageMeasurement
 
+FAULT_STREAM = 13
+"""Second entry of the fault generator's seed ``[seed, FAULT_STREAM]`` (issue 13)."""
+
 
 @dataclass(frozen=True)
 class Frame:
     """One camera frame.
 
     Attributes:
-        time: Capture time [s].
+        time: Timestamp [s] (capture time plus the exposure delay).
         points: ``[u, v]`` of each sphere [px]; NaN when not visible. Shape (2, 2).
         diameters: Apparent diameters [px]; NaN when not visible. Shape (2,).
-        q: Encoder configuration at capture time. Shape (nq,).
-        visible: Both spheres are in front of the camera and inside the image.
+        q: Encoder configuration at the timestamp. Shape (nq,).
+        visible: Both spheres are in front of the camera, inside the image and not occluded.
     """
 
     time: float
@@ -40,16 +57,39 @@ class Frame:
         return ImageMeasurement(self.points, camera.focal_px * diameter / self.diameters)
 
 
+@dataclass(frozen=True)
+class CameraFaults:
+    """The faults of a camera (see the module docstring); the defaults are a perfect camera.
+
+    Attributes:
+        drop_probability: Probability that a frame is lost, in [0, 1).
+        occlusion_starts: Start times of occlusion episodes [s].
+        occlusion_rate: Random occlusion episodes per second [1/s].
+        occlusion_duration: Length of every occlusion episode [s].
+        latency_jitter: Largest extra transport delay (uniform) [s].
+        exposure_delay: Delay from the exposure to the timestamp and encoders [s].
+    """
+
+    drop_probability: float = 0.0
+    occlusion_starts: tuple[float, ...] = ()
+    occlusion_rate: float = 0.0
+    occlusion_duration: float = 0.0
+    latency_jitter: float = 0.0
+    exposure_delay: float = 0.0
+
+
 class CameraSensor:
-    """Produces frames at ``rate`` and delivers them ``latency`` seconds later.
+    """Produces frames at ``rate`` and delivers them ``latency`` seconds after their stamp.
 
     Args:
         camera: Intrinsics.
         diameter: Sphere diameter D [m].
         rate: Frame rate [Hz].
-        latency: Delay between capture and delivery [s].
+        latency: Delay between the timestamp and delivery [s].
         noise_px: Standard deviation of the pixel noise on coordinates and diameters [px].
-        rng: Seeded random generator.
+        rng: Seeded random generator of the pixel noise.
+        faults: The camera's faults (none by default).
+        fault_rng: Seeded random generator of the faults (drops, random occlusions, jitter).
     """
 
     def __init__(
@@ -60,16 +100,24 @@ class CameraSensor:
         latency: float,
         noise_px: float,
         rng: np.random.Generator,
+        faults: CameraFaults | None = None,
+        fault_rng: np.random.Generator | None = None,
     ) -> None:
         if not rate > 0:
             raise GainError(f"camera rate: expected > 0 Hz, got {rate}")
         if not (latency >= 0 and noise_px >= 0):
             raise GainError(f"camera latency/noise: expected >= 0, got {latency}, {noise_px}")
+        faults = faults if faults is not None else CameraFaults()
+        if not 0 <= faults.drop_probability < 1:
+            raise GainError(f"drop probability: expected in [0, 1), got {faults.drop_probability}")
         self.camera, self.diameter = camera, diameter
         self.period, self.latency, self.noise = 1.0 / rate, latency, noise_px
-        self.rng = rng
+        self.rng, self.faults = rng, faults
+        self.fault_rng = fault_rng if fault_rng is not None else np.random.default_rng(0)
         self.next_capture = 0.0
-        self.pending: deque[Frame] = deque()
+        self.occluded_until = -np.inf
+        self.exposed: list[tuple[float, Frame]] = []  # (exposure time, frame before its stamp)
+        self.pending: list[tuple[float, Frame]] = []  # (delivery time, frame)
 
     def capture_due(self, t: float) -> bool:
         """Whether a frame is to be captured at time ``t``."""
@@ -78,6 +126,9 @@ class CameraSensor:
     def capture(self, t: float, camera_pose: object, centres: np.ndarray, q: np.ndarray) -> None:
         """Capture a frame of the true target seen from the true camera pose.
 
+        Without an exposure delay the frame is stamped at once with ``t`` and ``q``; otherwise
+        :meth:`stamp` stamps it later.
+
         Args:
             t: Time [s].
             camera_pose: True ``world_T_camera`` (``pin.SE3``).
@@ -85,6 +136,9 @@ class CameraSensor:
             q: Encoder configuration. Shape (nq,).
         """
         self.next_capture += self.period
+        faults = self.faults
+        if faults.drop_probability > 0 and self.fault_rng.random() < faults.drop_probability:
+            return
         image, depths = self.camera.project_world(camera_pose, centres)
         visible = bool(np.all(depths > MIN_DEPTH))
         points = np.full((2, 2), np.nan)
@@ -95,11 +149,39 @@ class CameraSensor:
             points = points + self.noise * self.rng.standard_normal((2, 2))
             diameters = np.maximum(diameters + self.noise * self.rng.standard_normal(2), 1.0)
             visible = self.camera.in_image(points)
-        self.pending.append(Frame(t, points, diameters, q.copy(), visible))
+        if visible and self._occluded(t):
+            points, diameters, visible = np.full((2, 2), np.nan), np.full(2, np.nan), False
+        self.exposed.append((t, Frame(t, points, diameters, q, visible)))
+        self.stamp(t, q)
+
+    def _occluded(self, t: float) -> bool:
+        """Whether an occlusion episode covers ``t`` (random episodes start here)."""
+        faults = self.faults
+        if faults.occlusion_rate > 0:
+            if self.fault_rng.random() < 1.0 - np.exp(-faults.occlusion_rate * self.period):
+                self.occluded_until = max(self.occluded_until, t + faults.occlusion_duration)
+        if t < self.occluded_until:
+            return True
+        return any(s <= t < s + faults.occlusion_duration for s in faults.occlusion_starts)
+
+    def stamp(self, t: float, q: np.ndarray) -> None:
+        """Stamp the exposed frames whose exposure delay has elapsed by ``t`` with ``t``, ``q``.
+
+        The frame is then due ``latency`` (plus its jitter draw) after ``t``.
+        """
+        while self.exposed and self.exposed[0][0] + self.faults.exposure_delay <= t + 1e-9:
+            _, frame = self.exposed.pop(0)
+            delay = self.latency
+            if self.faults.latency_jitter > 0:
+                delay += self.faults.latency_jitter * self.fault_rng.random()
+            stamped = Frame(t, frame.points, frame.diameters, q.copy(), frame.visible)
+            self.pending.append((t + delay, stamped))
 
     def deliver(self, t: float) -> Frame | None:
-        """The newest frame whose latency has elapsed by ``t`` (older ones are dropped)."""
-        latest = None
-        while self.pending and self.pending[0].time + self.latency <= t + 1e-9:
-            latest = self.pending.popleft()
+        """The newest frame due by ``t``; it and every older pending frame leave the queue."""
+        due = [frame for arrival, frame in self.pending if arrival <= t + 1e-9]
+        if not due:
+            return None
+        latest = max(due, key=lambda frame: frame.time)
+        self.pending = [(a, f) for a, f in self.pending if f.time > latest.time]
         return latest
