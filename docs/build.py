@@ -27,8 +27,9 @@ from pathlib import Path
 from typing import Any
 
 import pbvs_pin
+from pbvs_pin.sim.keys import Sign, keys_of
 from pbvs_pin.sim.scenario import OBSTACLE_KINDS, Scenario
-from pbvs_pin.sim.sections import SECTIONS, Sign, keys_of
+from pbvs_pin.sim.sections import SECTIONS
 from pbvs_pin.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS, SWEEP_TABLE_DOCS
 
 DOCS = Path(__file__).resolve().parent

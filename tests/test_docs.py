@@ -13,8 +13,9 @@ from pathlib import Path
 
 import pytest
 
+from pbvs_pin.sim.keys import keys_of
 from pbvs_pin.sim.scenario import OBSTACLE_KINDS, Scenario
-from pbvs_pin.sim.sections import SECTIONS, keys_of
+from pbvs_pin.sim.sections import SECTIONS
 from pbvs_pin.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS
 
 REPO_ROOT = Path(__file__).resolve().parents[1]

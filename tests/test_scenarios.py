@@ -15,6 +15,7 @@ import pytest
 
 from pbvs_pin.cli import main
 from pbvs_pin.exceptions import GainError, ScenarioError
+from pbvs_pin.sim.keys import keys_of
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle
 from pbvs_pin.sim.scenario import (
@@ -24,7 +25,7 @@ from pbvs_pin.sim.scenario import (
     scenario_dir,
     shipped_scenarios,
 )
-from pbvs_pin.sim.sections import SECTIONS, CameraSection, ControllerSection, keys_of
+from pbvs_pin.sim.sections import SECTIONS, CameraSection, ControllerSection
 from pbvs_pin.sim.setup import build
 
 EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")

@@ -22,6 +22,7 @@ from typing import Any, ClassVar
 
 from pbvs_pin.exceptions import GainError, ScenarioError
 from pbvs_pin.sim.consistency import check_consistency
+from pbvs_pin.sim.keys import Section, Sign, is_number, key, keys_of
 from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle
 from pbvs_pin.sim.sections import (
     SECTIONS,
@@ -36,13 +37,8 @@ from pbvs_pin.sim.sections import (
     PlatformSection,
     RobotSection,
     SecondarySection,
-    Section,
-    Sign,
     SimulationSection,
     TargetSection,
-    is_number,
-    key,
-    keys_of,
 )
 
 OBSTACLE_KINDS: dict[str, type[CircleObstacle | BoxObstacle]] = {
