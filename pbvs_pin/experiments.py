@@ -102,6 +102,7 @@ def reproduce(
     compensation: bool = True,
     echo: Callable[[str], None] = print,
     replays: bool = True,
+    robustness: bool = True,
 ) -> Path:
     """Run Experiments 1-4 (reference robot, other robots, IBVS, compensation); write the report.
 
@@ -117,6 +118,9 @@ def reproduce(
             :data:`pbvs_pin.report.COMPENSATION_MODES` other than the scenario's own.
         echo: Where progress lines go.
         replays: Also write an HTML replay of each reference run.
+        robustness: Also run the robustness map of :mod:`pbvs_pin.robustness` (each camera
+            fault alone, Experiment 1, without and with compensation) and draw
+            ``robustness.png``.
 
     Returns:
         Path of the markdown report.
@@ -161,10 +165,11 @@ def reproduce(
             pairs.append((name, comparison_figures(passivity_log), comparison_figures(ibvs_log)))
         if compensation:
             modes += _compensation_runs(name, reference[-1], out, finished)
+    robust = _robustness_map(out, echo) if robustness else ""
     echo(f"writing the report {out / 'report.md'}")
     comparison = baseline_section(pairs, gain) if baseline else ""
     text = _report(reference, others, classic, modes, replays)
-    text += comparison + _analysis_section(analyses)
+    text += comparison + _analysis_section(analyses) + robust
     path = out / "report.md"
     write_text_atomically(path, text)
     echo("")
@@ -185,6 +190,18 @@ def _compensation_runs(
         folder = out / "compensation" / mode / name
         rows.append(finished(run_scenario(scenario, folder, figures=False)[1]))
     return rows
+
+
+def _robustness_map(out: Path, echo: Callable[[str], None]) -> str:
+    """Run the robustness map, draw ``out/robustness.png``; the report's section."""
+    from pbvs_pin.robustness import load_map, map_section, plot_map, run_map
+
+    spec = load_map()
+    echo("robustness map: each camera fault alone, without and with compensation")
+    rows = run_map(spec, echo=echo)
+    echo(f"  writing {out / 'robustness.png'}")
+    plot_map(rows, out / "robustness.png", spec["map"]["threshold_px"])
+    return map_section(rows)
 
 
 def _analysis_section(analyses: list[dict[str, Any]]) -> str:

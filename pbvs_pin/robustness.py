@@ -1,0 +1,177 @@
+"""The robustness map (issue 13, item 6): each camera fault raised alone until the loop breaks.
+
+The map is read from the shipped spec ``pbvs_pin/sweeps/robustness.toml``: a base scenario, the
+compensation (prediction along eq. (3), a hold through lost frames, feature smoothing) and one
+``[[fault]]`` block per fault with its field and sizes. Each size is run twice, without and with
+the compensation. A run is *broken* when the max |xi_true - xi_d| over the last ``window_s``
+seconds is above ``threshold_px``, or the target is lost in that window (issue 13's definition).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pbvs_pin.sim.loop import simulate
+from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.sweep.spec import sweep_dir
+
+VARIANTS = ("without", "with")
+"""The two variants of every size: without and with the compensation of the spec."""
+
+
+def load_map(path: Path | None = None) -> dict[str, Any]:
+    """The robustness spec (default: the shipped ``sweeps/robustness.toml``) as a dict."""
+    with open(path or sweep_dir() / "robustness.toml", "rb") as file:
+        return tomllib.load(file)
+
+
+def final_error(log: Any, window_s: float) -> tuple[float, bool]:
+    """Max |xi_true - xi_d| over the last ``window_s`` seconds [px]; whether the target was lost.
+
+    A window whose errors are all NaN counts as ``inf``; ``lost`` is any lost sample in it.
+    """
+    t = np.asarray(log["t"])
+    final = t >= t[-1] - window_s
+    error = np.abs(np.asarray(log["xi_true"])[final] - np.asarray(log["xi_d"])[final])
+    worst = float(np.nanmax(error)) if np.isfinite(error).any() else math.inf
+    return worst, bool(np.any(np.asarray(log["target_lost"], dtype=bool)[final]))
+
+
+def run_map(
+    spec: dict[str, Any] | None = None,
+    duration: float | None = None,
+    echo: Callable[[str], None] | None = None,
+) -> list[dict[str, Any]]:
+    """Run every fault size without and with the compensation.
+
+    Args:
+        spec: The map (see :func:`load_map`); the shipped one by default.
+        duration: Run length [s]; the base scenario's when None.
+        echo: Told one line per run.
+
+    Returns:
+        One row per run: ``fault``, ``unit``, ``size``, ``variant`` (``"without"``/``"with"``),
+        ``field``, ``error_px`` (max over the last window), ``lost`` and ``broken``.
+    """
+    spec = spec or load_map()
+    setup = spec["map"]
+    base = load_scenario(setup["scenario"])
+    if duration is not None:
+        base = base.with_values(duration=duration)
+    rows = []
+    for fault in spec["fault"]:
+        for size in fault["sizes"]:
+            for variant in VARIANTS:
+                values = dict(fault.get("fixed", {}), **{fault["field"]: size})
+                if variant == "with":
+                    values.update(setup["compensation"])
+                log = simulate(base.with_values(**values), progress=False)
+                error, lost = final_error(log, setup["window_s"])
+                broken = lost or not error <= setup["threshold_px"]
+                rows.append(
+                    {"fault": fault["name"], "unit": fault["unit"], "field": fault["field"],
+                     "size": size,
+                     "variant": variant, "error_px": error, "lost": lost, "broken": broken}
+                )  # fmt: skip
+                if echo is not None:
+                    echo(
+                        f"  {fault['name']} {size:g} {fault['unit']}, {variant} compensation: "
+                        f"{error:.3g} px{' (target lost)' if lost else ''}"
+                    )
+    return rows
+
+
+def breaking_point(rows: list[dict[str, Any]], fault: str, variant: str) -> float | None:
+    """The smallest size of ``fault`` at which the ``variant`` run is broken (None: never)."""
+    broken = [r["size"] for r in rows if r["fault"] == fault and r["variant"] == variant
+              and r["broken"]]  # fmt: skip
+    return min(broken) if broken else None
+
+
+def _faults(rows: list[dict[str, Any]]) -> list[str]:
+    return list(dict.fromkeys(r["fault"] for r in rows))
+
+
+def plot_map(rows: list[dict[str, Any]], path: Path, threshold_px: float = 10.0) -> Path:
+    """Draw the map to ``path``: one panel per fault, error [px] against the fault's size.
+
+    Both variants per panel, the threshold drawn, each variant's breaking point marked by a
+    dotted line and lost-target runs by a cross; log-y.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    faults = _faults(rows)
+    columns = min(2, len(faults))
+    grid = (math.ceil(len(faults) / columns), columns)
+    fig, axes = plt.subplots(*grid, figsize=(6.0 * columns, 5.2 * grid[0]), squeeze=False)
+    styles = {"without": ("tab:red", "o", "without compensation"),
+              "with": ("tab:blue", "s", "with compensation")}  # fmt: skip
+    for ax in axes.flat[len(faults) :]:
+        ax.set_visible(False)
+    for ax, fault in zip(axes.flat, faults, strict=False):
+        unit, field = next((r["unit"], r["field"]) for r in rows if r["fault"] == fault)
+        for variant in VARIANTS:
+            color, marker, label = styles[variant]
+            mine = [r for r in rows if r["fault"] == fault and r["variant"] == variant]
+            sizes = [r["size"] for r in mine]
+            errors = [min(r["error_px"], 1e4) for r in mine]
+            ax.plot(sizes, errors, marker=marker, color=color, label=label)
+            lost = [(r["size"], min(r["error_px"], 1e4)) for r in mine if r["lost"]]
+            if lost:
+                ax.scatter(*zip(*lost, strict=True), marker="x", s=80, color="k", zorder=3)
+            first = breaking_point(rows, fault, variant)
+            if first is not None:
+                ax.axvline(first, color=color, linestyle=":", linewidth=1.5,
+                           label=f"{label}: breaks at {first:g} {unit}".rstrip())  # fmt: skip
+        ax.axhline(threshold_px, color="gray", linestyle="--", label=f"{threshold_px:g} px limit")
+        ax.set_yscale("log")
+        ax.set_title(fault)
+        ax.set_xlabel(f"{field} [{unit or '-'}]")
+        ax.set_ylabel("max |error| over the last 5 s [px]")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), fontsize=8, ncol=2)
+    fig.suptitle("Robustness map, Experiment 1 (x: target lost in the last 5 s)")
+    fig.tight_layout(h_pad=4.0)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def map_section(rows: list[dict[str, Any]], figure: str = "robustness.png") -> str:
+    """The report's section: the figure and a table of breaking points per fault."""
+    lines = [
+        "",
+        "## Robustness map (issue 13): each camera fault alone, Experiment 1",
+        "",
+        "Each fault raised alone (sizes in `pbvs_pin/sweeps/robustness.toml`), without and with "
+        "the compensation (prediction along eq. (3), 1.5 s hold, smoothing 0.2). Broken: max "
+        "|error| over the last 5 s above 10 px, or the target lost then.",
+        "",
+        f"![robustness map]({figure})",
+        "",
+        "| fault | sizes | breaks without compensation | breaks with compensation |",
+        "|---|---|---|---|",
+    ]
+    for fault in _faults(rows):
+        unit = next(r["unit"] for r in rows if r["fault"] == fault)
+        sizes = sorted({r["size"] for r in rows if r["fault"] == fault})
+        cells = []
+        for variant in VARIANTS:
+            first = breaking_point(rows, fault, variant)
+            top = f"not up to {sizes[-1]:g} {unit}".rstrip()
+            cells.append(top if first is None else f"{first:g} {unit}".rstrip())
+        lines.append(
+            f"| {fault} | {(', '.join(f'{s:g}' for s in sizes) + ' ' + unit).rstrip()} | "
+            + " | ".join(cells)
+            + " |"
+        )
+    return "\n".join(lines) + "\n"
