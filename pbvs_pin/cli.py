@@ -180,8 +180,15 @@ def _analyze(args: argparse.Namespace) -> None:
 
 
 def _sweep(args: argparse.Namespace) -> None:
-    """Run a grid or random sample of scenarios."""
+    """Run a grid or random sample of scenarios, or a robustness map."""
+    from pbvs_pin.robustness import map_path, write_map
     from pbvs_pin.sweep import run_sweep
+
+    robustness = map_path(args.spec)
+    if robustness is not None:
+        figure = write_map(Path(args.out), robustness, echo=print)[0]
+        print(f"robustness map written to {figure}")
+        return
 
     table = run_sweep(
         Path(args.spec),

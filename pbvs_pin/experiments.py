@@ -194,14 +194,10 @@ def _compensation_runs(
 
 def _robustness_map(out: Path, echo: Callable[[str], None]) -> str:
     """Run the robustness map, draw ``out/robustness.png``; the report's section."""
-    from pbvs_pin.robustness import load_map, map_section, plot_map, run_map
+    from pbvs_pin.robustness import write_map
 
-    spec = load_map()
     echo("robustness map: each camera fault alone, without and with compensation")
-    rows = run_map(spec, echo=echo)
-    echo(f"  writing {out / 'robustness.png'}")
-    plot_map(rows, out / "robustness.png", spec["map"]["threshold_px"])
-    return map_section(rows)
+    return write_map(out, echo=echo)[1]
 
 
 def _analysis_section(analyses: list[dict[str, Any]]) -> str:

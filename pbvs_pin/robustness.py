@@ -25,10 +25,42 @@ VARIANTS = ("without", "with")
 """The two variants of every size: without and with the compensation of the spec."""
 
 
+def map_path(name_or_path: str | Path) -> Path | None:
+    """The robustness spec a ``pbvs-pin sweep`` argument names (shipped name or path).
+
+    None when it names no readable TOML file with a ``[map]`` table (an ordinary sweep spec,
+    whose errors :func:`pbvs_pin.sweep.spec.load_sweep` then reports).
+    """
+    shipped = sweep_dir() / f"{name_or_path}.toml"
+    path = shipped if shipped.is_file() else Path(name_or_path)
+    try:
+        with open(path, "rb") as file:
+            return path if "map" in tomllib.load(file) else None
+    except (OSError, tomllib.TOMLDecodeError):
+        return None
+
+
 def load_map(path: Path | None = None) -> dict[str, Any]:
     """The robustness spec (default: the shipped ``sweeps/robustness.toml``) as a dict."""
     with open(path or sweep_dir() / "robustness.toml", "rb") as file:
         return tomllib.load(file)
+
+
+def write_map(
+    out: Path, path: Path | None = None, echo: Callable[[str], None] | None = None
+) -> tuple[Path, str]:
+    """Run the map of ``path`` (default: the shipped one); write ``out/robustness.png``.
+
+    Returns:
+        The figure's path and the markdown section (:func:`map_section`).
+    """
+    spec = load_map(path)
+    rows = run_map(spec, echo=echo)
+    out.mkdir(parents=True, exist_ok=True)
+    if echo is not None:
+        echo(f"  writing {out / 'robustness.png'}")
+    figure = plot_map(rows, out / "robustness.png", spec["map"]["threshold_px"])
+    return figure, map_section(rows)
 
 
 def final_error(log: Any, window_s: float) -> tuple[float, bool]:

@@ -10,6 +10,7 @@ from pbvs_pin.robustness import (
     VARIANTS,
     breaking_point,
     load_map,
+    map_path,
     map_section,
     plot_map,
     run_map,
@@ -71,3 +72,9 @@ def test_the_map_runs_each_size_without_and_with_compensation(small_map, tmp_pat
     path = plot_map(small_map, tmp_path / "robustness.png")
     assert path.stat().st_size > 10_000
     assert set(VARIANTS) == {r["variant"] for r in small_map}
+
+
+def test_sweep_names_the_shipped_map_but_not_an_ordinary_spec(tmp_path):
+    assert map_path("robustness") is not None
+    assert map_path("target_speed") is None
+    assert map_path(tmp_path / "missing.toml") is None
