@@ -3,7 +3,7 @@
 The map is read from the shipped spec ``pbvs_pin/sweeps/robustness.toml``: a base scenario, the
 compensation (prediction along eq. (3), a hold through lost frames, feature smoothing) and one
 ``[[fault]]`` block per fault with its field and sizes. Each size is run twice, without and with
-the compensation. A run is *broken* when the max |xi_true - xi_d| over the last ``window_s``
+the compensation. A run is *broken* when the max ``|xi_true - xi_d|`` over the last ``window_s``
 seconds is above ``threshold_px``, or the target is lost in that window (issue 13's definition).
 """
 
@@ -64,7 +64,7 @@ def write_map(
 
 
 def final_error(log: Any, window_s: float) -> tuple[float, bool]:
-    """Max |xi_true - xi_d| over the last ``window_s`` seconds [px]; whether the target was lost.
+    """Max ``|xi_true - xi_d|`` over the last ``window_s`` s [px]; whether the target was lost.
 
     A window whose errors are all NaN counts as ``inf``; ``lost`` is any lost sample in it.
     """
