@@ -135,3 +135,19 @@ def test_all_four_faults_together_stay_bounded_within_the_joint_limits(experimen
     lower, upper = (np.array(side, dtype=float) for side in log.meta["arm_position_limits"])
     assert np.all(log["arm"] >= lower - 1e-9) and np.all(log["arm"] <= upper + 1e-9)
     assert not np.any(log["target_lost"][final])
+
+
+@pytest.mark.parametrize("hold", [0.0, 0.4])
+def test_with_a_hold_a_frame_older_than_it_is_not_used(hold):
+    """No frame arrives between 0 s and 2 s (a 0.5 Hz camera): with a hold, the loop servoes on
+    the prediction for at most ``hold`` seconds after the frame, then its command is zero."""
+    values = dict(EXACT, **{"duration": 3.0, "camera.rate": 0.5, "estimator.predict": True,
+                            "estimator.hold": hold})  # fmt: skip
+    log = simulate(load_scenario("experiment1").with_values(**values))
+    t, speed = log["t"], np.linalg.norm(log["u"], axis=1)
+    assert np.all(speed[(t > 0.05) & (t < 0.35)] > 0)  # servoing on the prediction
+    between = (t > hold + 0.05) & (t < 1.95) if hold else (t > 0.5) & (t < 1.95)
+    if hold:
+        assert np.all(speed[between] == 0.0)
+    else:
+        assert np.all(speed[between] > 0)  # without a hold the prediction runs on

@@ -14,7 +14,8 @@ timestamps give (an exposure delay, invisible in them, is not compensated).
 - ``estimator.hold`` [s]: when a frame arrives without the target, the loop keeps servoing on
   the prediction until ``hold`` seconds after the newest frame that showed it; then the
   command is zero and the dynamic compensation brakes the robot to a stop (as without
-  ``hold``). When the target reappears the measurement replaces the prediction; the two
+  ``hold``). The same holds when no frame arrives at all: with a ``hold``, a frame older than
+  it is not used. When the target reappears the measurement replaces the prediction; the two
   differ only by the prediction's error, so the command does not jump.
 - ``estimator.smoothing`` ``w`` in (0, 1] (noise handling): a new frame updates the previous
   estimate brought up to the frame's stamp, ``x = x_pred + w (z - x_pred)``, on the image
@@ -88,12 +89,16 @@ class Perception:
             t: Time [s].
             q: Encoder configuration now. Shape (nq,).
         """
-        held = self.lost and self.hold > 0 and t - self.frame.time <= self.hold
-        self.predicting = self.frame is not None and (held or (self.predict and not self.lost))
+        age = np.inf if self.frame is None else t - self.frame.time
+        # with a hold, a frame older than it is no longer used, even if none arrived since
+        expired = self.hold > 0 and age > self.hold
+        held = self.lost and self.hold > 0 and not expired
+        fresh = not self.lost and not expired
+        self.predicting = self.frame is not None and (held or (self.predict and fresh))
         if self.predicting:
             self.used = self.predicted(t, q)
         else:
-            self.used = None if self.lost else self.measurement
+            self.used = self.measurement if fresh else None
         return self.used
 
     def predicted(self, t: float, q: np.ndarray) -> ImageMeasurement:
