@@ -162,7 +162,7 @@ def _explain_31(result: dict[str, Any], t: np.ndarray, gamma_norm: np.ndarray) -
         f"= {result['lambda_prime_k_min']:.4g}"
     )
     if start is None:
-        return f"no t1 ({result['condition_31']['reason']}); {lam_part}"
+        return f"{result['condition_31']['reason']}; {lam_part}"
     after = np.flatnonzero((t >= start) & np.isfinite(gamma_norm))
     peak = float(t[after[np.argmax(gamma_norm[after])]]) if after.size else start
     verdict = "holds" if result["condition_31"]["holds"] else "fails"
