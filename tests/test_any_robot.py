@@ -20,6 +20,13 @@ UNSHIPPED_ARMS = {  # example-robot-data arms on the reference platform, as a sc
 }
 
 
+def _short_run(table):
+    """Experiment 1, cut to DURATION, on the robot a ``[robot]`` table describes."""
+    return load_scenario("experiment1").with_values(
+        duration=DURATION, **{f"robot.{key}": value for key, value in table.items()}
+    )
+
+
 def _check(log):
     t, error = log["t"], log["xi_true"] - log["xi_d"]
     late = t >= DURATION - 2.0
@@ -47,10 +54,7 @@ def test_a_platform_and_arm_the_project_does_not_ship_holds_the_target():
     optical_from_body = [0.0, 0.0, 0.0, -np.pi / 2, 0.0, -np.pi / 2]
     table = {"name": "", "base": "tiago_pro", "camera_link": "arm_right_tool_link",
              "camera_pose": optical_from_body}  # fmt: skip
-    scenario = load_scenario("experiment1").with_values(
-        duration=DURATION, **{f"robot.{key}": value for key, value in table.items()}
-    )
-    _check(simulate(scenario))
+    _check(simulate(_short_run(table)))
 
 
 def test_posture_target_moves_the_run():
@@ -73,7 +77,4 @@ def test_posture_target_moves_the_run():
 def test_an_arm_the_project_does_not_ship_holds_the_target(arm):
     table = {"name": "", "base": "pioneer3at", "arm": arm, "mount": [0.10, 0.0, 0.27, 0, 0, 0]}
     table.update(UNSHIPPED_ARMS[arm])
-    scenario = load_scenario("experiment1").with_values(
-        duration=DURATION, **{f"robot.{key}": value for key, value in table.items()}
-    )
-    _check(simulate(scenario))
+    _check(simulate(_short_run(table)))

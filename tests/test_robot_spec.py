@@ -112,8 +112,7 @@ def test_relative_urdf_path_is_read_from_the_file_folder(tmp_path, monkeypatch):
     assert again.robot.urdf == scenario.robot.urdf
 
 
-def test_drive_keys_give_a_platform_without_wheels_a_drive(tmp_path):
-    table = f"""
+WHEELLESS_ASSEMBLY = f"""
 [robot]
 base = "{DATA_DIR / "box_platform.urdf"}"
 arm = "{DATA_DIR / "one_joint_arm.urdf"}"
@@ -121,6 +120,11 @@ mount = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
 camera_link = "tool_link"
 camera_pose = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
 """
+"""A one-joint arm on a platform without wheel joints, whose camera cannot look forward."""
+
+
+def test_drive_keys_give_a_platform_without_wheels_a_drive(tmp_path):
+    table = WHEELLESS_ASSEMBLY
     error, _ = _robot_error(tmp_path, table)
     assert error.field == "robot.base"
     assert "wheel_radius, track and wheel_speed_limit" in str(error)
@@ -290,17 +294,7 @@ def test_readme_examples_run(tmp_path):
 def test_a_robot_whose_camera_cannot_look_forward_needs_its_home(tmp_path):
     """Without `home`, the home is computed; an arm that cannot point its camera forward is
     refused on robot.home, naming what to give."""
-    table = f"""
-[robot]
-base = "{DATA_DIR / "box_platform.urdf"}"
-arm = "{DATA_DIR / "one_joint_arm.urdf"}"
-mount = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-camera_link = "tool_link"
-camera_pose = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-wheel_radius = 0.1
-track = 0.4
-wheel_speed_limit = 5.0
-"""
+    table = WHEELLESS_ASSEMBLY + "wheel_radius = 0.1\ntrack = 0.4\nwheel_speed_limit = 5.0\n"
     with pytest.raises(ScenarioError) as caught:
         load_scenario(_scenario_file(tmp_path, table)).robot.build()
     assert caught.value.field == "robot.home"
