@@ -47,6 +47,7 @@ from pbvs_pin import frames
 from pbvs_pin.assembly import DriveAxle, UrdfSource, find_drive_axle
 from pbvs_pin.base import DifferentialDrive
 from pbvs_pin.exceptions import GainError, UrdfError
+from pbvs_pin.mujoco_payload import UnknownPayload
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -205,6 +206,8 @@ class MujocoPlant:
         wheel_integral_time: Integral time ``T_i`` [s] of the wheel servos' integral action.
         mass_scale: Factor on every body's mass and inertia of the URDF (a model error: the
             true robot heavier than the URDF says).
+        payload: Mass [kg] at the camera frame's origin that the servos do not know of
+            (:class:`pbvs_pin.mujoco_payload.UnknownPayload`; 0: none).
         settle: Time [s] the robot stands still under zero references before the run starts,
             so that the wheels settle on the ground (0: start as placed).
 
@@ -224,6 +227,7 @@ class MujocoPlant:
         wheel_time_constant: float = WHEEL_TIME_CONSTANT,
         wheel_integral_time: float = WHEEL_INTEGRAL_TIME,
         mass_scale: float = 1.0,
+        payload: float = 0.0,
         settle: float = 0.0,
     ) -> None:
         if not 0 < dt <= 0.05:
@@ -246,6 +250,7 @@ class MujocoPlant:
             body.mass *= mass_scale
             body.inertia = np.asarray(body.inertia) * mass_scale
             body.fullinertia = np.asarray(body.fullinertia) * mass_scale  # NaN when unused
+        self.payload = UnknownPayload(spec, robot, payload) if payload != 0 else None
         drive = robot.base
         n_wheels = len(self.axle.wheel_joints)
         wheel_gain = mass * drive.wheel_radius**2 / (n_wheels * wheel_time_constant)
@@ -275,6 +280,8 @@ class MujocoPlant:
         self._arm_body = model.jnt_bodyid[self._arm_joint]
         self._arm_slide = model.jnt_type[self._arm_joint] == mujoco.mjtJoint.mjJNT_SLIDE
         self._weight = model.body_subtreemass[self._arm_body] * -model.opt.gravity[2]
+        if self.payload is not None:
+            self.payload.attach(model, self._arm_joint)
         self._inverse_time_constants = 1.0 / servo.time_constants[n_base:]
         self._damping = np.ascontiguousarray(servo.damping[n_base:], dtype=float)
         self._friction = np.ascontiguousarray(servo.friction[n_base:], dtype=float)
@@ -373,12 +380,17 @@ class MujocoPlant:
         model, data, servo = self.model, self.data, self.servo
         mujoco.mj_step1(model, data)
         mujoco.mj_fullM(model, data, self._full_mass)
+        mass, subtree_com, weight = self._full_mass, data.subtree_com, self._weight
+        if self.payload is not None:  # the servos do not know of it
+            mass, subtree_com, weight = self.payload.servo_view(
+                model, data, mass, self._arm_body, weight
+            )
         servo_commands(
-            self._full_mass, data.qvel, data.xmat[1], data.xaxis, data.xanchor,
-            data.subtree_com, np.asarray(v_ref, dtype=float), servo.speed_limits, self.robot.n_base,
+            mass, data.qvel, data.xmat[1], data.xaxis, data.xanchor,
+            subtree_com, np.asarray(v_ref, dtype=float), servo.speed_limits, self.robot.n_base,
             self._wheel_map, self._wheel_dof, self._wheel_integral, self._integral_limit,
             self.wheel_integral_time, self._arm_dof, self._arm_joint, self._arm_body,
-            self._arm_slide, self._weight, self._inverse_time_constants, self._damping,
+            self._arm_slide, weight, self._inverse_time_constants, self._damping,
             self._friction, servo.friction_speed, self._compensated, self.dt,
             model.actuator_gainprm, model.actuator_biasprm, data.ctrl,
         )  # fmt: skip

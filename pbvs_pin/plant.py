@@ -34,14 +34,22 @@ class Plant:
         loop: The true robot's servos.
         q: Initial configuration. Shape (nq,).
         dt: Integration step [s].
+        tuned: The robot the servos were tuned on, when it is not the true robot (a payload
+            they do not know of): their stiffness is scheduled with its mass matrix and they
+            cancel its gravity load. Same joints as ``robot``.
     """
 
     def __init__(
-        self, robot: MobileManipulator, loop: ServoModel, q: npt.ArrayLike, dt: float = 1e-3
+        self,
+        robot: MobileManipulator,
+        loop: ServoModel,
+        q: npt.ArrayLike,
+        dt: float = 1e-3,
+        tuned: MobileManipulator | None = None,
     ) -> None:
         if not 0 < dt <= 0.05:
             raise GainError(f"plant step: expected 0 < dt <= 0.05 s, got {dt}")
-        self.robot, self.loop, self.dt = robot, loop, dt
+        self.robot, self.loop, self.dt, self.tuned = robot, loop, dt, tuned
         self.q = robot.check_configuration(q).copy()
         self.gravity_weight = loop.gravity_weight
         self._inverse_time_constants = 1.0 / loop.time_constants
@@ -68,9 +76,15 @@ class Plant:
         model, data, servo = self.robot.model, self.robot.data, self.loop
         mass = pin.crba(model, data, self.q)
         bias = pin.nonLinearEffects(model, data, self.q, self._v_pin)
-        gravity = pin.computeGeneralizedGravity(model, data, self.q)
+        servo_mass = mass
+        if self.tuned is None:
+            gravity = pin.computeGeneralizedGravity(model, data, self.q)
+        else:
+            tuned = self.tuned
+            servo_mass = pin.crba(tuned.model, tuned.data, self.q)
+            gravity = pin.computeGeneralizedGravity(tuned.model, tuned.data, self.q)
         self._v = servo_step(
-            mass, bias, gravity, self.robot.selection, self._inverse_time_constants,
+            mass, servo_mass, bias, gravity, self.robot.selection, self._inverse_time_constants,
             servo.damping, servo.friction, servo.friction_speed, servo.effort,
             servo.speed_limits, self.gravity_weight, servo.stop_index,
             self.q[servo.stop_q_index], servo.lower, servo.upper, self._v,

@@ -37,6 +37,9 @@ from pbvs_pin.exceptions import FrameNotFound, GainError, NoMovableJoint, UrdfEr
 from pbvs_pin.urdf_checks import check_meshes
 from pbvs_pin.validation import as_array, as_se3
 
+PAYLOAD_RADIUS = 0.02
+"""Radius [m] of a payload's solid sphere (:meth:`MobileManipulator.with_payload`)."""
+
 UNIT_TOLERANCE = 1e-6
 """Largest deviation from 1 of the norm of an angle's ``(cos, sin)`` pair in a configuration."""
 
@@ -333,6 +336,30 @@ class MobileManipulator:
             frame.placement = pin.SE3(
                 frame.placement.rotation, kinematic_scale * frame.placement.translation
             )
+        twin.model, twin.data = model, model.createData()
+        return twin
+
+    def with_payload(self, mass: float) -> MobileManipulator:
+        """A copy carrying a payload at the camera frame's origin (the end-effector).
+
+        The payload, a solid sphere of radius :data:`PAYLOAD_RADIUS`, is added to the inertia
+        of the camera frame's parent joint, at the camera frame's placement in it.
+
+        Args:
+            mass: Payload [kg], >= 0.
+
+        Returns:
+            A new robot sharing nothing mutable with this one (this robot when ``mass`` is 0).
+        """
+        if not (np.isfinite(mass) and mass >= 0):
+            raise GainError(f"payload: expected a mass >= 0 kg, got {mass}")
+        if mass == 0:
+            return self
+        twin = copy.copy(self)
+        model = self.model.copy()
+        frame = model.frames[self.camera_frame_id]
+        sphere = pin.Inertia.FromSphere(mass, PAYLOAD_RADIUS)
+        model.inertias[frame.parentJoint] += frame.placement.act(sphere)
         twin.model, twin.data = model, model.createData()
         return twin
 

@@ -242,6 +242,7 @@ class ServoModel:
 @njit(cache=True)
 def servo_step(
     mass_upper: np.ndarray,
+    servo_mass_upper: np.ndarray,
     bias: np.ndarray,
     gravity: np.ndarray,
     selection: np.ndarray,
@@ -276,8 +277,11 @@ def servo_step(
 
     Args:
         mass_upper: CRBA mass matrix, upper triangle filled. Shape (nv, nv).
+        servo_mass_upper: The mass matrix the servos' stiffness is scheduled with (the robot
+            they were tuned on; ``mass_upper`` when that is the true robot). Shape (nv, nv).
         bias: ``pin.nonLinearEffects`` at ``S v``. Shape (nv,).
-        gravity: ``pin.computeGeneralizedGravity``. Shape (nv,).
+        gravity: The gravity load the servos cancel (``pin.computeGeneralizedGravity`` of the
+            robot they were tuned on). Shape (nv,).
         selection: ``S``. Shape (nv, n).
         inverse_time_constants: ``1 / T``. Shape (n,).
         damping: ``D``. Shape (n,).
@@ -301,7 +305,10 @@ def servo_step(
     """
     n = v.shape[0]
     mass_v, bias_v = actuated_terms(mass_upper, bias, gravity, selection, np.ones(n))
-    gains = scheduled_stiffness(mass_v, inverse_time_constants, np.zeros(n))
+    servo_mass_v = mass_v
+    if servo_mass_upper is not mass_upper:
+        servo_mass_v, _ = actuated_terms(servo_mass_upper, bias, gravity, selection, np.ones(n))
+    gains = scheduled_stiffness(servo_mass_v, inverse_time_constants, np.zeros(n))
     reference = np.empty(n)
     feed_forward = np.empty(n)
     slope = np.empty(n)

@@ -29,6 +29,7 @@ CASES = {  # key: (context, new value)
     "robot.home": ({}, [0.1, 0.0, 0.0]),
     "model_error.kinematic_scale": ({}, 1.2),
     "model_error.mass_scale": ({}, 2.0),
+    "model_error.payload": ({}, 0.5),
     "camera.focal_px": ({}, 650.0),
     "camera.width": ({}, 640),
     "camera.height": ({}, 600),

@@ -51,8 +51,11 @@ def test_the_default_engine_is_the_pinocchio_plant():
         {"model_error.kinematic_scale": 1.2},
         {"model_error.mass_scale": 2.0},
         {"model_error.mass_scale": 2.0, "plant.engine": "mujoco"},
+        {"model_error.payload": 0.5},
+        {"model_error.payload": 0.5, "plant.engine": "mujoco"},
     ],
-    ids=["engine", "kinematic_scale", "mass_scale", "mass_scale-mujoco"],
+    ids=["engine", "kinematic_scale", "mass_scale", "mass_scale-mujoco", "payload",
+         "payload-mujoco"],  # fmt: skip
 )
 def test_a_plant_or_model_error_key_moves_the_log(default_log, changes):
     log = _run(**changes)

@@ -159,6 +159,11 @@ class ModelErrorSection(Section):
         1.0, "Factor on the model's link lengths (1.2: 20 % kinematic error).", sign=POSITIVE
     )
     mass_scale: float = key(1.0, "Factor on the true robot's masses and inertias.", sign=POSITIVE)
+    payload: float = key(
+        0.0,
+        "Mass [kg] at the camera frame's origin in the true robot only; its servos do not know it.",
+        sign=NON_NEGATIVE,
+    )
 
 
 @dataclass(frozen=True)

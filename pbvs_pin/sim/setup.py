@@ -175,23 +175,30 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
 
 
 def _plant(scenario: Scenario, robot: MobileManipulator, q0: np.ndarray) -> Plant | MujocoPlant:
-    """The true robot's physics (``plant.engine``), ``model_error.mass_scale`` times heavier.
+    """The true robot's physics (``plant.engine``), as ``[model_error]`` makes it.
 
     The servos were tuned on the nominal robot (the URDF's masses, the controller's model):
     their stiffness ``K = sum |M_v,nominal| / T`` is ``sum |M_v,true| / (s T)`` on a robot whose
-    masses are ``s`` times the nominal, so the true plant's servos have time constants ``s T``.
+    masses are ``mass_scale = s`` times the nominal, so the true plant's servos have time
+    constants ``s T``. A ``payload`` at the camera frame is unknown to them: their stiffness
+    and gravity cancellation stay those of the robot without it.
     """
-    mass_scale = scenario.model_error.mass_scale
+    errors = scenario.model_error
     servo = ServoModel.from_robot(robot)
-    if mass_scale != 1.0:
-        servo = replace(servo, time_constants=mass_scale * servo.time_constants)
+    if errors.mass_scale != 1.0:
+        servo = replace(servo, time_constants=errors.mass_scale * servo.time_constants)
     dt = scenario.simulation.plant_dt
     if scenario.plant.engine == "mujoco":
         from pbvs_pin.mujoco_plant import MujocoPlant  # MuJoCo is loaded only when asked for
 
-        return MujocoPlant(robot, servo, q0, dt, mass_scale=mass_scale, settle=SETTLE_TIME)
-    true_robot = robot if mass_scale == 1.0 else robot.with_model_error(1.0, mass_scale)
-    return Plant(true_robot, servo, q0, dt)
+        return MujocoPlant(
+            robot, servo, q0, dt, mass_scale=errors.mass_scale, payload=errors.payload,
+            settle=SETTLE_TIME,
+        )  # fmt: skip
+    tuned = robot if errors.mass_scale == 1.0 else robot.with_model_error(1.0, errors.mass_scale)
+    if errors.payload == 0:
+        return Plant(tuned, servo, q0, dt)
+    return Plant(tuned.with_payload(errors.payload), servo, q0, dt, tuned=tuned)
 
 
 def _start(scenario: Scenario, robot: MobileManipulator) -> np.ndarray:
