@@ -29,6 +29,7 @@ from pbvs_pin.robot import PAYLOAD_RADIUS
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
 
+
 class UnknownPayload:
     """A payload welded at the camera frame's origin, and the servos' view without it.
 

@@ -120,5 +120,7 @@ def test_servos_that_do_not_know_the_payload_let_it_sag():
     assert np.abs(known.q - robot.home()).max() < 1e-6
     assert np.abs(sag).max() > 1e-4
     # the sag goes the way gravity pulls: the payload's height drops
-    drop = robot.camera_pose(unknown.q).translation[2] - robot.camera_pose(robot.home()).translation[2]
+    drop = (
+        robot.camera_pose(unknown.q).translation[2] - robot.camera_pose(robot.home()).translation[2]
+    )
     assert drop < 0

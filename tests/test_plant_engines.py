@@ -54,8 +54,14 @@ def test_the_default_engine_is_the_pinocchio_plant():
         {"model_error.payload": 0.5},
         {"model_error.payload": 0.5, "plant.engine": "mujoco"},
     ],
-    ids=["engine", "kinematic_scale", "mass_scale", "mass_scale-mujoco", "payload",
-         "payload-mujoco"],  # fmt: skip
+    ids=[
+        "engine",
+        "kinematic_scale",
+        "mass_scale",
+        "mass_scale-mujoco",
+        "payload",
+        "payload-mujoco",
+    ],
 )
 def test_a_plant_or_model_error_key_moves_the_log(default_log, changes):
     log = _run(**changes)
