@@ -208,6 +208,38 @@ def compensation_table(summaries: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+ENGINE_ROBOTS = ("pioneer_cyton", "pioneer_ur5", "tiago")
+"""Robots whose experiments ``reproduce`` also runs on the MuJoCo plant (wheels on a floor)."""
+
+ENGINE_HEADER = (
+    "| robot | experiment | plant | claim met | max abs error, last 5 s [px] | RMS error "
+    "after 2 s [px] | odometry drift at the end [m] | heading drift at the end [deg] | "
+    "lateral slip RMS [m/s] | yaw rate / wheels' | real-time factor | flags |\n"
+    "|---|---|---|---|---|---|---|---|---|---|---|---|"
+)
+"""Header of :func:`engines_table`."""
+
+
+def engine_row(s: dict[str, Any]) -> str:
+    """One run's row of the two-plant comparison: error, odometry drift, slip, speed."""
+    met = claim_met(s)
+    return (
+        f"| {s['robot']} | {s['scenario']} | {s['engine']} | "
+        f"{'-' if met is None else ('met' if met else 'NOT met')} | "
+        f"{s['max_abs_error_final_window_px']:.2f} | {s['rms_error_after_transient_px']:.2f} | "
+        f"{s['odometry_drift_m']:.4f} | {s['odometry_heading_drift_deg']:.2f} | "
+        f"{s['lateral_slip_rms_mps']:.4f} | {s['yaw_rate_ratio']:.2f} | "
+        f"{s['real_time_factor']:.0f}x | {'; '.join(flags(s)) or 'none'} |"
+    )
+
+
+def engines_table(summaries: list[dict[str, Any]]) -> str:
+    """The runs of each robot and experiment on both plants, side by side."""
+    order = {name: i for i, name in enumerate(CLAIMS)}
+    rows = sorted(summaries, key=lambda s: (s["robot"], order.get(s["scenario"], 99), s["engine"]))
+    return "\n".join([ENGINE_HEADER, *(engine_row(s) for s in rows)])
+
+
 def readme_results(reference: list[dict[str, Any]]) -> str:
     """The README's results block (markers included) from the reference runs' summaries."""
     lines = [
