@@ -64,6 +64,14 @@ r"""Integral time ``T_i`` [s] of the wheel servos: with :data:`WHEEL_TIME_CONSTA
 loop ``m r^2 / N \ddot e + k_w \dot e + k_w / T_i e = 0`` has damping ratio
 ``sqrt(T_i / tau_w) / 2 = 0.71``."""
 
+YAW_INTEGRAL_TIME = 0.1
+r"""Integral time ``T_g`` [s] of the platform's yaw-rate loop on its gyro: the yaw rate that
+the wheels are asked for is ``omega + e_g / T_g`` with ``e_g = \int (omega - omega_gyro) dt``.
+A skid-steer platform whose wheels reach their speeds turns at ``rho omega`` with ``rho < 1``
+(its slip, which depends on the load, the floor and the rate); the loop's closed-loop time
+constant is then ``T_g / rho``, 0.1-0.5 s, no slower than the platform servo the controller's
+model assumes."""
+
 GROUND = "ground"
 """Name of the ground plane geom."""
 
@@ -203,6 +211,9 @@ class MujocoPlant:
         wheel_time_constant: Forward-speed time constant ``tau_w`` [s] of the wheel servos'
             proportional action, wheels not slipping, on the URDF's masses.
         wheel_integral_time: Integral time ``T_i`` [s] of the wheel servos' integral action.
+        yaw_integral_time: Integral time ``T_g`` [s] of the platform's yaw-rate loop on its
+            gyro (:data:`YAW_INTEGRAL_TIME`); None: no gyro, the wheels get the speeds of
+            ``[u, omega]`` only.
         mass_scale: Factor on every body's mass and inertia of the URDF (a model error: the
             true robot heavier than the URDF says).
         settle: Time [s] the robot stands still under zero references before the run starts,
@@ -223,6 +234,7 @@ class MujocoPlant:
         friction: float = WHEEL_FRICTION,
         wheel_time_constant: float = WHEEL_TIME_CONSTANT,
         wheel_integral_time: float = WHEEL_INTEGRAL_TIME,
+        yaw_integral_time: float | None = YAW_INTEGRAL_TIME,
         mass_scale: float = 1.0,
         settle: float = 0.0,
     ) -> None:
@@ -231,6 +243,7 @@ class MujocoPlant:
         for name, value in (
             ("wheel_time_constant", wheel_time_constant),
             ("wheel_integral_time", wheel_integral_time),
+            ("yaw_integral_time", 1.0 if yaw_integral_time is None else yaw_integral_time),
             ("mass_scale", mass_scale),
         ):
             if not (np.isfinite(value) and value > 0):
@@ -282,7 +295,7 @@ class MujocoPlant:
         self._full_mass = np.zeros((model.nv, model.nv))
         wheels = [model.joint(name) for name in self.axle.wheel_joints]
         left = model.body_pos[[j.bodyid[0] for j in wheels], 1] > 0.0
-        half_track = 0.5 * drive.track
+        half_track = 0.5 * drive.effective_track
         self._wheel_map = (
             np.column_stack([np.ones(len(wheels)), np.where(left, -half_track, half_track)])
             / drive.wheel_radius
@@ -293,11 +306,18 @@ class MujocoPlant:
             model.jnt_actfrcrange[[j.id for j in wheels], 1] * wheel_integral_time / wheel_gain
         )
         self._wheel_integral = np.zeros(len(wheels))
+        self._wheel_speed_limit = drive.max_wheel_speed
+        self._yaw_gain = 0.0 if yaw_integral_time is None else 1.0 / yaw_integral_time
+        self._yaw_integral_limit = (
+            0.0 if yaw_integral_time is None else servo.speed_limits[1] * yaw_integral_time
+        )
+        self._yaw_integral = np.zeros(1)
         self.reset(q)
         if settle > 0:
             for _ in range(round(settle / dt)):
                 self.step(np.zeros(robot.n))
             self._wheel_integral[:] = 0.0
+            self._yaw_integral[:] = 0.0
             self.data.time = 0.0
 
     # ------------------------------------------------------------------ state
@@ -306,6 +326,7 @@ class MujocoPlant:
         q = self.robot.check_configuration(q)
         mujoco.mj_resetData(self.model, self.data)
         self._wheel_integral[:] = 0.0
+        self._yaw_integral[:] = 0.0
         yaw = np.arctan2(q[3], q[2])
         self.data.qpos[:7] = [q[0], q[1], 0.0, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
         self.data.qpos[self._arm_qpos] = self.robot.arm_positions(q)
@@ -376,8 +397,9 @@ class MujocoPlant:
         servo_commands(
             self._full_mass, data.qvel, data.xmat[1], data.xaxis, data.xanchor,
             data.subtree_com, np.asarray(v_ref, dtype=float), servo.speed_limits, self.robot.n_base,
-            self._wheel_map, self._wheel_dof, self._wheel_integral, self._integral_limit,
-            self.wheel_integral_time, self._arm_dof, self._arm_joint, self._arm_body,
+            self._wheel_map, self._wheel_dof, self._wheel_speed_limit, self._wheel_integral,
+            self._integral_limit, self.wheel_integral_time, self._yaw_integral, self._yaw_gain,
+            self._yaw_integral_limit, self._arm_dof, self._arm_joint, self._arm_body,
             self._arm_slide, self._weight, self._inverse_time_constants, self._damping,
             self._friction, servo.friction_speed, self._compensated, self.dt,
             model.actuator_gainprm, model.actuator_biasprm, data.ctrl,
@@ -436,9 +458,13 @@ def servo_commands(
     n_base: int,
     wheel_map: np.ndarray,
     wheel_dof: np.ndarray,
+    wheel_speed_limit: float,
     wheel_integral: np.ndarray,
     integral_limit: np.ndarray,
     integral_time: float,
+    yaw_integral: np.ndarray,
+    yaw_gain: float,
+    yaw_integral_limit: float,
     arm_dof: np.ndarray,
     arm_joint: np.ndarray,
     arm_body: np.ndarray,
@@ -497,11 +523,22 @@ def servo_commands(
         biasprm: Written: ``model.actuator_biasprm``. Shape (nu, 10).
         ctrl: Written: ``data.ctrl``. Shape (nu,).
     """
+    platform = np.empty(n_base)
+    for k in range(n_base):
+        platform[k] = min(max(v_ref[k], -speed_limits[k]), speed_limits[k])
+    yaw_rate = (
+        footprint_rotation[6] * qvel[3] + footprint_rotation[7] * qvel[4]
+        + footprint_rotation[8] * qvel[5]
+    )  # fmt: skip
+    yaw_error = yaw_integral[0] + h * (platform[n_base - 1] - yaw_rate)
+    yaw_integral[0] = min(max(yaw_error, -yaw_integral_limit), yaw_integral_limit)
+    platform[n_base - 1] += yaw_gain * yaw_integral[0]
     n_wheels = wheel_dof.shape[0]
     for i in range(n_wheels):
         wheel_ref = 0.0
         for k in range(n_base):
-            wheel_ref += wheel_map[i, k] * min(max(v_ref[k], -speed_limits[k]), speed_limits[k])
+            wheel_ref += wheel_map[i, k] * platform[k]
+        wheel_ref = min(max(wheel_ref, -wheel_speed_limit), wheel_speed_limit)
         error = wheel_integral[i] + h * (wheel_ref - qvel[wheel_dof[i]])
         wheel_integral[i] = min(max(error, -integral_limit[i]), integral_limit[i])
         ctrl[i] = wheel_ref + wheel_integral[i] / integral_time
