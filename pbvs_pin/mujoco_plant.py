@@ -428,9 +428,9 @@ class MujocoPlant:
         ``[u, omega]`` and the gyro loop's correction of ``omega``; each wheel servo adds
         integral action ``k_w e_i / T_i`` with ``e_i = \int (w_{ref} - w) dt`` (clamped at the
         wheel's effort), as a wheel's motor controller does, so that a skid-steer platform keeps
-        turning against its wheels' side friction. An arm servo's velocity actuator gets the scheduled stiffness ``K_j`` as its
-        gain and ``r + (D r + F tanh(r / v_s) + G g) / K`` as its command (the module
-        docstring's law).
+        turning against its wheels' side friction. An arm servo's velocity actuator gets the
+        scheduled stiffness ``K_j`` as its gain and ``r + (D r + F tanh(r / v_s) + G g) / K``
+        as its command (the module docstring's law).
         """
         model, data = self.model, self.data
         mujoco.mj_step1(model, data)
