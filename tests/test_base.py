@@ -149,7 +149,7 @@ def _coulomb_spin_ratio(wheels: np.ndarray) -> float:
     def moment(omega: float) -> float:
         rolling = np.sign(wheels[:, 1]) * half_track  # wheel surface speed, omega_c = 1
         slip = np.column_stack([-omega * wheels[:, 1] + rolling, omega * wheels[:, 0]])
-        force = -slip / np.linalg.norm(slip, axis=1, keepdims=True)
+        force = -slip / np.maximum(np.linalg.norm(slip, axis=1, keepdims=True), 1e-300)
         return float(np.sum(wheels[:, 0] * force[:, 1] - wheels[:, 1] * force[:, 0]))
 
     low, high = 0.0, 1.0
