@@ -112,6 +112,8 @@ def servo_commands(
     v_ref: np.ndarray,
     speed_limits: np.ndarray,
     n_base: int,
+    platform_state: np.ndarray,
+    platform_blend: np.ndarray,
     wheel_map: np.ndarray,
     wheel_dof: np.ndarray,
     wheel_speed_limit: float,
@@ -138,7 +140,9 @@ def servo_commands(
 ) -> None:
     r"""Set the wheel and arm servos' gains and commands for one MuJoCo step.
 
-    Platform: ``p = clip(v_ref[:n_base])``; the gyro loop's integral
+    Platform: the clipped reference ``clip(v_ref[:n_base])`` passes the platform's first-order
+    lags (time constants ``T_k`` of :class:`pbvs_pin.servo.ServoModel`), exactly discretised,
+    ``p += (1 - exp(-h / T_k)) (clip(v_ref_k) - p)``; the gyro loop's integral
     ``e_g += h (p_omega - omega_gyro)``, clamped at ``yaw_integral_limit``, adds
     ``yaw_gain e_g`` to the yaw rate ``p_omega`` (its last entry), with ``omega_gyro`` the
     footprint's yaw rate ``(R qvel[3:6])_2``.
@@ -165,6 +169,8 @@ def servo_commands(
         v_ref: Velocity reference ``[u, omega, arm rates]``. Shape (n,).
         speed_limits: Largest reference per velocity. Shape (n,).
         n_base: Number of platform velocities.
+        platform_state: Updated: the lagged platform reference ``p``. Shape (n_base,).
+        platform_blend: ``1 - exp(-h / T_k)``. Shape (n_base,).
         wheel_map: ``W``, wheel speeds from ``[u, omega]``. Shape (n_w, n_base).
         wheel_dof: The wheels' dof addresses. Shape (n_w,).
         wheel_speed_limit: Largest wheel speed reference [rad/s].
@@ -191,7 +197,9 @@ def servo_commands(
     """
     platform = np.empty(n_base)
     for k in range(n_base):
-        platform[k] = min(max(v_ref[k], -speed_limits[k]), speed_limits[k])
+        clipped = min(max(v_ref[k], -speed_limits[k]), speed_limits[k])
+        platform_state[k] += platform_blend[k] * (clipped - platform_state[k])
+        platform[k] = platform_state[k]
     yaw_rate = (
         footprint_rotation[6] * qvel[3] + footprint_rotation[7] * qvel[4]
         + footprint_rotation[8] * qvel[5]

@@ -17,7 +17,13 @@ actuated velocities, the URDF's effort as ``tau_max`` (MuJoCo joint ``actuatorfr
 URDF's damping and friction as MuJoCo joint ``damping``/``frictionloss`` (fed forward by the
 servo), and the URDF's limits as MuJoCo joint limits; ``G_j g_j`` is the servo's cancellation
 of its own gravity load. The platform command ``[u, omega]`` (clipped to the servo's speed
-limits) becomes wheel speeds ``w_l = (u - omega b / 2) / r``, ``w_r = (u + omega b / 2) / r``
+limits) passes the first-order lags of the platform's time constants in
+:class:`pbvs_pin.servo.ServoModel` (0.26 s and 0.23 s, a Pioneer's identified response), as a
+platform's controller shapes its speed commands; so the platform responds as on the Pinocchio
+plant and as the dynamic compensation (eq. 20) assumes. (Without the lags the wheels' own
+0.05 s servos drove the platform five times faster than eq. 20's model, which then
+over-compensated: TIAGo's Experiment 2 oscillated at 9.5 px RMS above 0.5 Hz, 1.8 px with
+compensation off.) The lagged command becomes wheel speeds ``w_l = (u - omega b / 2) / r``, ``w_r = (u + omega b / 2) / r``
 (wheel radius ``r``, each clipped at the wheels' speed limit), the inverse of
 ``u = r (w_l + w_r) / 2``, ``omega = r (w_r - w_l) / b``, with ``b`` the drive's *effective*
 track ``chi * track`` (:class:`pbvs_pin.base.DifferentialDrive`; ``chi = 1`` for two wheels).
@@ -329,6 +335,8 @@ class MujocoPlant:
             0.0 if yaw_integral_time is None else servo.speed_limits[1] * yaw_integral_time
         )
         self._yaw_integral = np.zeros(1)
+        self._platform_state = np.zeros(n_base)
+        self._platform_blend = 1.0 - np.exp(-dt / servo.time_constants[:n_base])
         self._neutral = robot.neutral()
         self._qpos, self._qvel = self.data.qpos, self.data.qvel  # views, valid for data's life
         self._q: np.ndarray | None = None
@@ -342,7 +350,8 @@ class MujocoPlant:
             servo_mass, data.qvel, data.xmat[1], data.xaxis, data.xanchor, servo_com,
         )  # fmt: skip
         self._servo_arguments = (
-            servo.speed_limits, robot.n_base, self._wheel_map, self._wheel_dof,
+            servo.speed_limits, robot.n_base, self._platform_state, self._platform_blend,
+            self._wheel_map, self._wheel_dof,
             self._wheel_speed_limit, self._wheel_integral, self._integral_limit,
             wheel_integral_time, self._yaw_integral, self._yaw_gain, self._yaw_integral_limit,
             self._arm_dof, self._arm_joint, self._arm_body, self._arm_slide, servo_weight,
@@ -355,6 +364,7 @@ class MujocoPlant:
                 self.step(np.zeros(robot.n))
             self._wheel_integral[:] = 0.0
             self._yaw_integral[:] = 0.0
+            self._platform_state[:] = 0.0
             self.data.time = 0.0
 
     # ------------------------------------------------------------------ state
@@ -365,6 +375,7 @@ class MujocoPlant:
         self._q = None
         self._wheel_integral[:] = 0.0
         self._yaw_integral[:] = 0.0
+        self._platform_state[:] = 0.0
         yaw = np.arctan2(q[3], q[2])
         self.data.qpos[:7] = [q[0], q[1], 0.0, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
         self.data.qpos[self._arm_qpos] = self.robot.arm_positions(q)

@@ -10,6 +10,7 @@ import pytest
 from pbvs_pin import MobileManipulator, load_robot
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.mujoco_plant import MujocoPlant
+from pbvs_pin.plant import Plant
 from pbvs_pin.servo import REVOLUTE_TIME_CONSTANT, ServoModel
 
 TWO_WHEELS = Path(__file__).parent / "data" / "two_wheel_platform.urdf"
@@ -111,9 +112,35 @@ def test_two_wheel_drive_follows_the_unicycle_without_slip():
 
     plant.reset(robot.home())
     _run(plant, [0.3, 0.0, 0.0], 2.0)
-    assert plant.q[0] == pytest.approx(0.3 * 2.0, abs=0.03)
+    lag = plant.servo.time_constants[0]  # the platform's first-order lag
+    assert plant.q[0] == pytest.approx(0.3 * (2.0 - lag * (1 - np.exp(-2.0 / lag))), abs=0.01)
     assert abs(plant.q[1]) < 1e-3
     assert abs(plant.q[3]) < 1e-3
+
+
+@pytest.mark.parametrize(
+    ("name", "index", "tolerance"),
+    [("two_wheels", 0, 0.04), ("two_wheels", 1, 0.06), ("pioneer_cyton", 0, 0.04),
+     ("tiago", 0, 0.04)],
+)  # fmt: skip
+def test_platform_speed_steps_like_the_pinocchio_plant(name, index, tolerance):
+    """One servo definition on both engines: a step of the forward speed (0.3 m/s) or of the
+    yaw rate (0.4 rad/s) follows the same response on the MuJoCo plant, wheels on the floor,
+    as on the Pinocchio plant (the platform's time constants of ServoModel), within
+    ``tolerance`` at every step of 1.5 s."""
+    robot = MobileManipulator.from_urdf(str(TWO_WHEELS)) if name == "two_wheels" else load_robot(name)
+    servo = ServoModel.from_robot(robot)
+    mujoco_plant = MujocoPlant(robot, servo, robot.home(), settle=0.3)
+    pinocchio_plant = Plant(robot, servo, robot.home())
+    v_ref = np.zeros(robot.n)
+    v_ref[index] = (0.3, 0.4)[index]
+    difference = []
+    for _ in range(1500):
+        mujoco_plant.step(v_ref)
+        pinocchio_plant.step(v_ref)
+        difference.append(mujoco_plant.v[index] - pinocchio_plant.v[index])
+    assert np.abs(difference).max() < tolerance
+    assert mujoco_plant.v[index] == pytest.approx(v_ref[index], rel=0.03)
 
 
 def test_skid_steer_platform_slips_when_turning():
