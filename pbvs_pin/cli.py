@@ -145,6 +145,13 @@ def _run(args: argparse.Namespace) -> None:
     print(f"log, summary and figures written to {out}" + (f"; replay: {html}" if html else ""))
 
 
+def _compile(args: argparse.Namespace) -> None:
+    """Compile and cache the control kernels, announced (:func:`compile_kernels`)."""
+    from pbvs_pin.compile_cache import compile_kernels
+
+    compile_kernels()
+
+
 def _reproduce(args: argparse.Namespace) -> None:
     """Run the paper's four experiments and write the report."""
     from pbvs_pin.experiments import reproduce
@@ -267,6 +274,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --meshcat: simulated seconds shown per second; 1 is real time",
     )
     run.set_defaults(handler=_run)
+    compiling = commands.add_parser(
+        "compile",
+        help="compile the control kernels now (once after installing; else the first run does)",
+    )
+    compiling.set_defaults(handler=_compile)
     reproduce = commands.add_parser("reproduce", help="run the paper's four experiments")
     reproduce.add_argument("--out", default="results", help="output folder")
     reproduce.add_argument(
