@@ -177,8 +177,10 @@ def main() -> None:
             plant_floor,
         ),
         ("plant step: the rest (glue, compiled servo kernel)", plant_step - plant_calls),
-        ("loop: the rest (camera, perception, log, Python, cache misses)", loop - control_step - plant_step
-         + (plant_calls - plant_floor)),
+        (
+            "loop: the rest (camera, perception, log, Python, cache misses)",
+            loop - control_step - plant_step + (plant_calls - plant_floor),
+        ),
         ("total (the closed loop above)", loop),
         ("floor: the Pinocchio calls alone", control_calls + plant_floor),
     )  # fmt: skip

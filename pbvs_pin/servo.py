@@ -261,10 +261,17 @@ def pack_servos(
     nv, n = selection.shape
     params = np.concatenate(
         [
-            1.0 / servo.time_constants, servo.damping, servo.friction, servo.effort,
-            servo.speed_limits, gravity_weight, servo.lower, servo.upper, selection.ravel(),
+            1.0 / servo.time_constants,
+            servo.damping,
+            servo.friction,
+            servo.effort,
+            servo.speed_limits,
+            gravity_weight,
+            servo.lower,
+            servo.upper,
+            selection.ravel(),
             [servo.friction_speed, h],
-        ]  # fmt: skip
+        ]
     ).astype(float)
     k = servo.stop_index.shape[0]
     indices = np.concatenate([[n, nv, k], servo.stop_index, servo.stop_q_index])
