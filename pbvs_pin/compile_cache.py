@@ -4,14 +4,13 @@ The kernels (``@njit(cache=True)`` functions of the package's modules) are compi
 first call and cached on disk, next to the modules (``__pycache__``) or under
 ``NUMBA_CACHE_DIR``. The first run on a machine therefore spends about
 :data:`COMPILE_SECONDS` compiling before its first step; :func:`compile_notice` says so, once,
-and says nothing when the cache is warm. ``pbvs-pin compile`` (:func:`compile_kernels`) does
-the same compile as an explicit step, right after installing.
+and says nothing when the cache is warm. ``pbvs-pin compile`` does
+the same compile as an explicit step, right after installing (:mod:`pbvs_pin.cli`).
 """
 
 from __future__ import annotations
 
 import sys
-import time
 from typing import TextIO
 
 COMPILE_SECONDS = 25
@@ -71,29 +70,3 @@ def compile_notice(stream: TextIO | None = None) -> bool:
         return False
     print(COMPILE_NOTICE, file=stream or sys.stderr, flush=True)
     return True
-
-
-def compile_kernels(stream: TextIO | None = None) -> float:
-    """Compile and cache every kernel a run calls, announced on ``stream`` (stdout).
-
-    Runs 0.1 s of Experiment 1 (its first control step compiles the fused step and the
-    plant's servo kernel; its log the rest) and says what it did and how long it took.
-
-    Returns:
-        The wall time [s].
-    """
-    from pbvs_pin.sim.loop import simulate  # the loop imports this module
-    from pbvs_pin.sim.scenario import load_scenario
-
-    stream = stream or sys.stdout
-    cached = kernels_cached()
-    print(
-        "control kernels already compiled; checking them" if cached else COMPILE_NOTICE,
-        file=stream,
-        flush=True,
-    )
-    started = time.perf_counter()
-    simulate(load_scenario("experiment1").with_values(duration=0.1))
-    elapsed = time.perf_counter() - started
-    print(f"done in {elapsed:.1f} s; runs start at once from now on", file=stream, flush=True)
-    return elapsed
