@@ -23,7 +23,8 @@ platform's controller shapes its speed commands; so the platform responds as on 
 plant and as the dynamic compensation (eq. 20) assumes. (Without the lags the wheels' own
 0.05 s servos drove the platform five times faster than eq. 20's model, which then
 over-compensated: TIAGo's Experiment 2 oscillated at 9.5 px RMS above 0.5 Hz, 1.8 px with
-compensation off.) The lagged command becomes wheel speeds ``w_l = (u - omega b / 2) / r``, ``w_r = (u + omega b / 2) / r``
+compensation off.) The lagged command becomes wheel speeds ``w_l = (u - omega b / 2) / r``,
+``w_r = (u + omega b / 2) / r``
 (wheel radius ``r``, each clipped at the wheels' speed limit), the inverse of
 ``u = r (w_l + w_r) / 2``, ``omega = r (w_r - w_l) / b``, with ``b`` the drive's *effective*
 track ``chi * track`` (:class:`pbvs_pin.base.DifferentialDrive`; ``chi = 1`` for two wheels).

@@ -20,6 +20,7 @@ from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
 from pbvs_pin.control.step import FusedControlStep
 from pbvs_pin.control.upright import upright_row
 from pbvs_pin.exceptions import RunInterrupted
+from pbvs_pin.plant import Plant
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog, RunRecorder
 from pbvs_pin.sim.obstacles import footprint_points
@@ -94,6 +95,7 @@ def simulate(
             setup.model, setup.features, setup.xi_d, setup.controller, setup.compensator,
             setup.objectives,
         )  # fmt: skip
+    shared = fused is not None and shares_dynamics(setup)
     if progress:
         compile_notice()
     started = wallclock.perf_counter()
@@ -140,7 +142,10 @@ def simulate(
                 )
                 if observer is not None:
                     observer(_snapshot(setup, perception, t))  # fmt: skip
-            for _ in range(substeps):
+            terms = fused.terms_at(plant.q, plant.v) if shared and seen else None
+            if terms is not None:
+                plant.step(v_ref, terms)  # on the controller's Pinocchio terms: the same numbers
+            for _ in range(substeps - (terms is not None)):
                 plant.step(v_ref)
             if bar is not None:
                 bar.update(1)
@@ -152,6 +157,21 @@ def simulate(
     if bar is not None:
         bar.close()
     return recorder.finish(started)
+
+
+def shares_dynamics(setup: Setup) -> bool:
+    """Whether the plant may step on the controller's Pinocchio terms.
+
+    Only a Pinocchio plant whose model equals the controller's, value for value (no
+    ``model_error``), and with the same ``S``: then ``crba``, ``nonLinearEffects`` and the
+    gravity at the same ``(q, v)`` are the same numbers, computed once per control step.
+    """
+    plant = setup.plant
+    return (
+        isinstance(plant, Plant)
+        and setup.model.model == plant.robot.model
+        and np.array_equal(setup.model.selection, plant.robot.selection)
+    )
 
 
 def _snapshot(setup: Setup, perception: Perception, t: float) -> Snapshot:
