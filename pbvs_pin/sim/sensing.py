@@ -107,7 +107,7 @@ class Sensing:
         self.filter_time = spec.velocity_filter
         q = self.plant.q
         self.q, self.v = q.copy(), np.zeros(model.n)
-        self.odometry = None
+        self.odometry: WheelOdometry | None = None
         if self.drive is not None and not self.exact:
             self.odometry = WheelOdometry(
                 self.drive, spec.wheel_encoder_counts, planar_pose(model, q),
