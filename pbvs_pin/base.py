@@ -123,6 +123,34 @@ class DifferentialDrive(BaseAdapter):
         half = 0.5 * omega * self.effective_track
         return (u - half) / self.wheel_radius, (u + half) / self.wheel_radius
 
+    def wheel_map(self) -> np.ndarray:
+        r"""Left and right wheel speeds [rad/s] from the planar joint's ``[vx, vy, wz]``.
+
+        .. math:: w_l = (v_x - \omega_z b / 2) / r,\quad w_r = (v_x + \omega_z b / 2) / r
+
+        with ``b`` the effective track (the platform moving as the unicycle its wheel speeds
+        command, :meth:`wheel_speeds`).
+
+        Returns:
+            Shape (2, 3).
+        """
+        half = 0.5 * self.effective_track
+        return np.array([[1.0, 0.0, -half], [1.0, 0.0, half]]) / self.wheel_radius
+
+    def platform_velocity(self, wheel_speeds: np.ndarray) -> np.ndarray:
+        r"""``[u, omega]`` [m/s, rad/s] from left and right wheel speeds [rad/s], shape (2,).
+
+        .. math:: u = r (w_l + w_r) / 2,\quad \omega = r (w_r - w_l) / b
+
+        with ``b`` the effective track, the inverse of :meth:`wheel_speeds`.
+
+        Returns:
+            Shape (2,).
+        """
+        left, right = wheel_speeds
+        r = self.wheel_radius
+        return np.array([0.5 * r * (left + right), r * (right - left) / self.effective_track])
+
 
 def skid_steer_factor(wheel_positions: np.ndarray) -> float:
     r"""ICR expansion factor ``chi`` of fixed wheels at ``wheel_positions``.

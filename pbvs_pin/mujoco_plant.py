@@ -323,6 +323,9 @@ class MujocoPlant:
             / drive.wheel_radius
         )
         self._wheel_dof = np.array([j.dofadr[0] for j in wheels])
+        self._wheel_qpos = np.array([j.qposadr[0] for j in wheels])
+        sides = np.array([left, ~left], dtype=float)  # rows: left, right
+        self._wheel_sides = sides / sides.sum(axis=1, keepdims=True)
         self._n_wheels = len(wheels)
         self._integral_limit = (
             model.jnt_actfrcrange[[j.id for j in wheels], 1] * wheel_integral_time / wheel_gain
@@ -427,6 +430,16 @@ class MujocoPlant:
     def wheel_speeds(self) -> np.ndarray:
         """Drive wheel angular speeds [rad/s], in the order of ``axle.wheel_joints``."""
         return self.data.qvel[self._wheel_dof].copy()
+
+    @property
+    def wheel_angles(self) -> np.ndarray:
+        """Mean angle [rad] of the left and of the right drive wheels. Shape (2,).
+
+        What a skid-steer platform's wheel encoders give (the wheels of a side are geared
+        together on the Pioneer 3-AT); zero at the start of the run
+        (:meth:`pbvs_pin.sim.sensing.Sensing` takes differences).
+        """
+        return self._wheel_sides @ self.data.qpos[self._wheel_qpos]
 
     # ------------------------------------------------------------------ step
     def arm_gravity(self) -> np.ndarray:

@@ -18,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from pbvs_pin.base import DifferentialDrive
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.servo import pack_servos, packed_servo_step
 
@@ -28,6 +29,11 @@ if TYPE_CHECKING:
 
 class Plant:
     """State ``(q, v)`` of the true robot, advanced by velocity references.
+
+    A differential drive's wheels are not in the state; :attr:`wheel_angles` integrates the
+    wheel rotations that the no-slip motion implies, ``w = W [v_x, v_y, omega_z]``
+    (:meth:`pbvs_pin.base.DifferentialDrive.wheel_map`), so that the wheel encoders read the
+    same quantity on both engines (:class:`pbvs_pin.mujoco_plant.MujocoPlant`).
 
     Args:
         robot: The true robot.
@@ -56,6 +62,10 @@ class Plant:
         self._v_pin = np.zeros(robot.model.nv)
         self._displacement = np.zeros(robot.model.nv)
         self.v = np.zeros(robot.n)
+        drive = robot.base
+        self._wheel_map = drive.wheel_map() if isinstance(drive, DifferentialDrive) else None
+        self.wheel_angles = np.zeros(2)
+        """Left and right wheel angles [rad] (zero at the start). Shape (2,)."""
 
     @property
     def v(self) -> np.ndarray:
@@ -100,3 +110,5 @@ class Plant:
             np.asarray(v_ref, dtype=float), self._v_pin, self._displacement,
         )  # fmt: skip
         self.q = pin.integrate(model, self.q, self._displacement)
+        if self._wheel_map is not None:
+            self.wheel_angles += self._wheel_map @ self._displacement[:3]

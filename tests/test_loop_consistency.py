@@ -9,9 +9,12 @@ from pbvs_pin.sim.perception import Perception
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.setup import build
 
+NO_LATENCY = {"camera.latency": 0.0}
+"""A frame captured at 0 s is delivered at 0 s (the default latency is one frame)."""
+
 
 def test_loop_jacobians_match_the_feature_set_at_the_current_configuration():
-    setup = build(load_scenario("experiment1"))
+    setup = build(load_scenario("experiment1").with_values(**NO_LATENCY))
     perception = Perception(setup)
     q0 = setup.plant.q
     setup.sensor.capture(0.0, setup.robot.camera_pose(q0), setup.target.centres(0.0), q0)
@@ -34,7 +37,8 @@ def test_fused_step_equals_the_modular_blocks():
     """The 1 kHz loop's single compiled call gives what the modular classes give."""
     from pbvs_pin.control.step import FusedControlStep
 
-    scenario = load_scenario("experiment2")  # posture, joint limits and obstacle avoidance on
+    # posture, joint limits and obstacle avoidance on
+    scenario = load_scenario("experiment2").with_values(**NO_LATENCY)
     modular, fused_setup = build(scenario), build(scenario)
     fused = FusedControlStep(
         fused_setup.model, fused_setup.features, fused_setup.xi_d, fused_setup.controller,
