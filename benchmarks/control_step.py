@@ -8,7 +8,12 @@ control step (kinematic controller, eq. 34, plus dynamic compensation, eq. 20) a
 Pinocchio calls that step makes (joint Jacobians, camera frame placement and Jacobian,
 CRBA, nonlinear effects, gravity), both
 measured in this run, and their ratio; then the real-time factor of a closed-loop simulation
-with a 1 kHz controller on the reference robot. Medians over repeats: the machine is shared.
+with a 1 kHz controller on the reference robot, its cost per simulated second against the
+number of arm joints (a Panda on the reference platform with the camera on its link 3 ... 7:
+3 ... 7 arm joints), and where the loop's time goes on the reference robot: the Pinocchio
+calls per simulated millisecond that no speed-up removes (the floor), the rest of the control
+step and of the plant step, and everything else in the loop. Medians over repeats: the machine
+is shared.
 """
 
 from __future__ import annotations
@@ -20,7 +25,8 @@ import numpy as np
 import pinocchio as pin
 
 from pbvs_pin.control.step import FusedControlStep
-from pbvs_pin.sim.loop import simulate
+from pbvs_pin.plant import Plant
+from pbvs_pin.sim.loop import shares_dynamics, simulate
 from pbvs_pin.sim.perception import Perception
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.setup import build
@@ -85,29 +91,102 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float]:
     return _interleaved(step, pinocchio_calls)
 
 
-def closed_loop_real_time_factor(duration: float = 10.0, repeats: int = 3) -> float:
+def closed_loop_real_time_factor(
+    duration: float = 10.0, repeats: int = 3, **values: object
+) -> tuple[float, float]:
     """Median simulated seconds per wall-clock second of the loop, 1 kHz controller.
 
-    On the reference robot, over ``repeats`` runs. The setup (loading the robot, maximising
-    manipulability) is not counted.
+    On the reference robot (or the robot ``values`` give), over ``repeats`` runs. The setup
+    (loading the robot, maximising manipulability) is not counted.
+
+    Returns:
+        The factor, and the fraction of logged steps with a valid command (the fused step).
     """
     scenario = load_scenario("experiment1").with_values(
-        **{"controller.rate": 1000.0, "duration": duration}
+        **{"controller.rate": 1000.0, "duration": duration, **values}
     )
-    return statistics.median(
-        duration / simulate(scenario).meta["wall_time"] for _ in range(repeats)
+    logs = [simulate(scenario) for _ in range(repeats)]
+    factor = statistics.median(duration / log.meta["wall_time"] for log in logs)
+    return factor, float(np.mean(logs[0]["valid"]))
+
+
+def panda_truncated(joints: int) -> dict[str, object]:
+    """Scenario values: a Panda on the reference platform, camera on link ``joints``."""
+    return {
+        "robot.name": "", "robot.base": "pioneer3at", "robot.arm": "panda",
+        "robot.camera_link": f"panda_link{joints}", "robot.camera_pose": (0.0,) * 6,
+        "robot.mount": (0.10, 0.0, 0.27, 0.0, 0.0, 0.0),
+    }  # fmt: skip
+
+
+def plant_step_times(robot_name: str) -> tuple[float, float, float]:
+    """Median plant step, its Pinocchio calls and ``pin.integrate`` alone [s], interleaved."""
+    setup = build(load_scenario("experiment1").with_values(**{"robot.name": robot_name}))
+    plant = setup.plant
+    assert isinstance(plant, Plant)
+    model, data, q0 = plant.robot.model, plant.robot.data, plant.q.copy()
+    v_ref = np.zeros(setup.robot.n)
+    displacement = np.zeros(model.nv)
+
+    def step() -> None:
+        plant.q = q0
+        plant.step(v_ref)
+
+    def pinocchio_calls() -> None:
+        pin.crba(model, data, q0)
+        pin.nonLinearEffects(model, data, q0, displacement)
+        pin.computeGeneralizedGravity(model, data, q0)
+        pin.integrate(model, q0, displacement)
+
+    step_time, calls, _ = _interleaved(step, pinocchio_calls)
+    integrate = statistics.median(
+        _mean_time(lambda: pin.integrate(model, q0, displacement)) for _ in range(REPEATS)
     )
+    return step_time, calls, integrate
 
 
 def main() -> None:
     """Print the measurements."""
     print(f"{'robot':<16}{'n':>3}{'control step [us]':>20}{'pinocchio calls [us]':>23}{'ratio':>8}")
+    steps = {}
     for name in ("pioneer_cyton", "pioneer_xarm7"):
         step, calls, ratio = control_step_ratio(name)
+        steps[name] = (step, calls)
         n = build(load_scenario("experiment1").with_values(**{"robot.name": name})).robot.n
         print(f"{name:<16}{n:>3}{step * 1e6:>20.1f}{calls * 1e6:>23.1f}{ratio:>8.2f}")
-    factor = closed_loop_real_time_factor()
+    factor, _ = closed_loop_real_time_factor()
     print(f"closed loop, 1 kHz controller, pioneer_cyton: {factor:.1f}x real time")
+    print("\ncost per simulated second against the arm's joints (Panda, camera on link 3 ... 7):")
+    print(f"{'arm joints':>10}{'n':>4}{'cost [ms per s]':>17}{'real time':>11}{'fused':>7}")
+    for joints in range(3, 8):
+        values = panda_truncated(joints)
+        n = build(load_scenario("experiment1").with_values(**values)).robot.n
+        dof_factor, valid = closed_loop_real_time_factor(5.0, **values)
+        print(f"{joints:>10}{n:>4}{1e3 / dof_factor:>17.1f}{dof_factor:>10.1f}x{valid:>7.2f}")
+    shared = shares_dynamics(build(load_scenario("experiment1")))
+    plant_step, plant_calls, integrate = plant_step_times("pioneer_cyton")
+    control_step, control_calls = steps["pioneer_cyton"]
+    plant_floor = integrate if shared else plant_calls
+    loop = 1e-3 / factor
+    print("\nwhere a simulated millisecond goes, pioneer_cyton (one control and plant step) [us]:")
+    rows = (
+        ("control step: its Pinocchio calls", control_calls),
+        ("control step: the rest (glue, compiled kernel)", control_step - control_calls),
+        (
+            "plant step: its Pinocchio calls" + (" (integrate only: terms shared)" * shared),
+            plant_floor,
+        ),
+        ("plant step: the rest (glue, compiled servo kernel)", plant_step - plant_calls),
+        (
+            "loop: the rest (camera, perception, log, Python, cache misses)",
+            loop - control_step - plant_step + (plant_calls - plant_floor),
+        ),
+        ("total (the closed loop above)", loop),
+        ("floor: the Pinocchio calls alone", control_calls + plant_floor),
+    )  # fmt: skip
+    for label, value in rows:
+        print(f"  {label:<66}{value * 1e6:>7.2f}")
+    print(f"  the floor allows at most {1e-3 / (control_calls + plant_floor):.0f}x real time")
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ import yourdfpy
 from lxml import etree
 
 from pbvs_pin import frames
-from pbvs_pin.base import DifferentialDrive
+from pbvs_pin.base import DifferentialDrive, skid_steer_factor
 from pbvs_pin.exceptions import (
     DriveAxleNotFound,
     FrameNotFound,
@@ -285,7 +285,9 @@ def find_drive_axle(source: UrdfSource) -> DriveAxle:
     track = float(np.mean([p[1] for _, p in left]) - np.mean([p[1] for _, p in right]))
     footprint = np.eye(4)
     footprint[:3, 3] = [*centres[:, :2].mean(axis=0), centres[:, 2].mean() - np.mean(radii)]
-    drive = DifferentialDrive(float(np.mean(radii)), track, float(min(speeds)))
+    drive = DifferentialDrive(
+        float(np.mean(radii)), track, float(min(speeds)), skid_steer_factor(centres)
+    )
     return DriveAxle(drive, footprint, tuple(joint.name for joint, _ in wheels))
 
 

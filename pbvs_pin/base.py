@@ -48,24 +48,40 @@ class BaseAdapter(abc.ABC):
 
 @dataclass(frozen=True)
 class DifferentialDrive(BaseAdapter):
-    """A platform driven by a left and a right wheel (or wheel set), no side slip.
+    r"""A platform driven by a left and a right wheel (or wheel set), no side slip.
 
     Actuated velocities: forward speed ``u`` [m/s] and yaw rate ``omega`` [rad/s] of the
-    drive-axle midpoint. Wheel speeds: ``w_right = (u + omega * track / 2) / r`` and
-    ``w_left = (u - omega * track / 2) / r``.
+    drive-axle midpoint. Wheel speeds: ``w_right = (u + omega * chi * track / 2) / r`` and
+    ``w_left = (u - omega * chi * track / 2) / r``, with the *effective track* ``chi * track``.
+
+    A skid-steer platform (more than one wheel per side, all fixed) slips sideways whenever it
+    turns: its wheels' instantaneous centres of rotation lie outside the wheels, so that it
+    turns as if its track were ``chi`` times wider (the ICR expansion factor; Mandow et al.,
+    "Experimental kinematics for wheeled skid-steer mobile robots", IROS 2007, on a Pioneer
+    3-AT; ``wheel_separation_multiplier`` of ROS's ``diff_drive_controller``). With one wheel
+    per side, ``chi = 1``. For wheels at ``+-a`` from the axle midpoint along x and ``+-b``
+    along y, equal loads and Coulomb friction, the moment balance of a spin in place gives
+    ``chi = (a^2 + b^2) / b^2`` (:func:`skid_steer_factor`).
 
     Attributes:
         wheel_radius: Wheel radius r [m].
         track: Distance between the left and right wheel contact lines [m].
         max_wheel_speed: Largest wheel angular speed [rad/s].
+        track_factor: ICR expansion factor ``chi >= 1`` [-]: the wheel-speed mapping, the yaw
+            rate limit and wheel odometry use the effective track ``chi * track``.
     """
 
     wheel_radius: float
     track: float
     max_wheel_speed: float
+    track_factor: float = 1.0
 
     def __post_init__(self) -> None:
-        """Reject non-positive dimensions."""
+        """Reject non-positive dimensions and an expansion factor below 1."""
+        if not (np.isfinite(self.track_factor) and self.track_factor >= 1.0):
+            raise GainError(
+                f"DifferentialDrive.track_factor: expected >= 1, got {self.track_factor}"
+            )
         for name in ("wheel_radius", "track", "max_wheel_speed"):
             value = getattr(self, name)
             if not np.isfinite(value) or value <= 0.0:
@@ -92,15 +108,76 @@ class DifferentialDrive(BaseAdapter):
         """
         return np.array([[1.0, 0.0], [0.0, 0.0], [0.0, 1.0]])
 
+    @property
+    def effective_track(self) -> float:
+        """``chi * track`` [m]: the track of the unicycle the platform turns as."""
+        return self.track_factor * self.track
+
     def velocity_limits(self) -> np.ndarray:
-        """``[r w_max, 2 r w_max / track]``: speed [m/s] and yaw rate [rad/s] limits."""
+        """``[r w_max, 2 r w_max / (chi track)]``: speed [m/s] and yaw rate [rad/s] limits."""
         u_max = self.wheel_radius * self.max_wheel_speed
-        return np.array([u_max, 2.0 * u_max / self.track])
+        return np.array([u_max, 2.0 * u_max / self.effective_track])
 
     def wheel_speeds(self, u: float, omega: float) -> tuple[float, float]:
         """Left and right wheel angular speeds [rad/s] for a platform command."""
-        half = 0.5 * omega * self.track
+        half = 0.5 * omega * self.effective_track
         return (u - half) / self.wheel_radius, (u + half) / self.wheel_radius
+
+    def wheel_map(self) -> np.ndarray:
+        r"""Left and right wheel speeds [rad/s] from the planar joint's ``[vx, vy, wz]``.
+
+        .. math:: w_l = (v_x - \omega_z b / 2) / r,\quad w_r = (v_x + \omega_z b / 2) / r
+
+        with ``b`` the effective track (the platform moving as the unicycle its wheel speeds
+        command, :meth:`wheel_speeds`).
+
+        Returns:
+            Shape (2, 3).
+        """
+        half = 0.5 * self.effective_track
+        return np.array([[1.0, 0.0, -half], [1.0, 0.0, half]]) / self.wheel_radius
+
+    def platform_velocity(self, wheel_speeds: np.ndarray) -> np.ndarray:
+        r"""``[u, omega]`` [m/s, rad/s] from left and right wheel speeds [rad/s], shape (2,).
+
+        .. math:: u = r (w_l + w_r) / 2,\quad \omega = r (w_r - w_l) / b
+
+        with ``b`` the effective track, the inverse of :meth:`wheel_speeds`.
+
+        Returns:
+            Shape (2,).
+        """
+        left, right = wheel_speeds
+        r = self.wheel_radius
+        return np.array([0.5 * r * (left + right), r * (right - left) / self.effective_track])
+
+
+def skid_steer_factor(wheel_positions: np.ndarray) -> float:
+    r"""ICR expansion factor ``chi`` of fixed wheels at ``wheel_positions``.
+
+    For wheel contact points at ``(x_i, y_i)`` around their centroid, half-wheelbase
+    ``a = sqrt(mean (x_i - mean x)^2)`` and half-track ``b = mean |y_i - mean y|``, a spin in
+    place under Coulomb friction and equal wheel loads is balanced (zero net yaw moment of the
+    friction forces ``-mu N s_i / |s_i|`` against the slip velocities ``s_i``) at
+    ``omega = omega_c b^2 / (a^2 + b^2)``, where ``omega_c = r (w_r - w_l) / (2 b)``:
+
+    .. math:: \chi = \frac{a^2 + b^2}{b^2}.
+
+    One wheel per side (``a = 0``) gives ``chi = 1``; the Pioneer 3-AT (``a = 0.134`` m,
+    ``b = 0.197`` m) gives 1.46, within the 1.3-2 measured on such platforms.
+
+    Args:
+        wheel_positions: Wheel centres in the platform frame [m], x forward, y left.
+            Shape (n_wheels, 2) or (n_wheels, 3).
+
+    Returns:
+        ``chi >= 1``.
+    """
+    positions = np.asarray(wheel_positions, dtype=float)[:, :2]
+    centred = positions - positions.mean(axis=0)
+    half_wheelbase_sq = float(np.mean(centred[:, 0] ** 2))
+    half_track = float(np.mean(np.abs(centred[:, 1])))
+    return (half_wheelbase_sq + half_track**2) / half_track**2
 
 
 @dataclass(frozen=True)

@@ -55,12 +55,26 @@ class UnknownPayload:
             inertia=[self.moment] * 3,
         )
 
-    def attach(self, model: mujoco.MjModel, arm_joint: np.ndarray) -> None:
-        """Bind to the compiled model: which arm joints carry the payload.
+    def attach(
+        self,
+        model: mujoco.MjModel,
+        arm_joint: np.ndarray,
+        arm_body: np.ndarray,
+        weight: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Bind to the compiled model; the arrays :meth:`servo_view` keeps current.
 
         Args:
             model: The compiled model.
             arm_joint: Joint id of each arm joint. Shape (n_arm,).
+            arm_body: Its body id. Shape (n_arm,).
+            weight: ``m_j g_0`` of each arm joint's subtree, with the payload [N].
+                Shape (n_arm,).
+
+        Returns:
+            The mass matrix (nv, nv) and the subtree centres of mass (nbody, 3) without the
+            payload, written by every :meth:`servo_view`, and the subtree weights without it
+            (n_arm,), constant.
         """
         self._body = model.body(self.parent).id
         carried = []
@@ -69,45 +83,36 @@ class UnknownPayload:
             while body > 0 and body != above:
                 body = model.body_parentid[body]
             carried.append(body == above)
-        self._carried = np.array(carried)
-        self._weight = self.mass * -model.opt.gravity[2]
+        self._carried = np.flatnonzero(carried)
+        self._arm_body = arm_body
+        self._payload_weight = self.mass * -model.opt.gravity[2]
+        self._weight = weight
         self._jacp = np.zeros((3, model.nv))
         self._jacr = np.zeros((3, model.nv))
+        self.servo_mass = np.zeros((model.nv, model.nv))
+        self.servo_com = np.zeros((model.nbody, 3))
+        self.servo_weight = weight.copy()
+        self.servo_weight[self._carried] -= self._payload_weight
+        return self.servo_mass, self.servo_com, self.servo_weight
 
-    def servo_view(
-        self,
-        model: mujoco.MjModel,
-        data: mujoco.MjData,
-        full_mass: np.ndarray,
-        arm_body: np.ndarray,
-        weight: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The mass matrix, subtree centres of mass and weights without the payload.
+    def servo_view(self, model: mujoco.MjModel, data: mujoco.MjData, full_mass: np.ndarray) -> None:
+        """Write the mass matrix and subtree centres of mass without the payload.
 
         Args:
             model: The compiled model.
             data: Its data after ``mj_step1`` (positions and kinematics current).
             full_mass: MuJoCo's dense mass matrix with the payload. Shape (nv, nv).
-            arm_body: Body id of each arm joint. Shape (n_arm,).
-            weight: ``m_j g_0`` of each arm joint's subtree, with the payload [N].
-                Shape (n_arm,).
-
-        Returns:
-            ``M_nominal`` (nv, nv), ``subtree_com`` without the payload (nbody, 3) and the
-            weights without it (n_arm,).
         """
         point = data.xpos[self._body] + data.xmat[self._body].reshape(3, 3) @ self.offset
         mujoco.mj_jac(model, data, self._jacp, self._jacr, point, self._body)
-        mass = (
+        self.servo_mass[:] = (
             full_mass
             - self.mass * self._jacp.T @ self._jacp
             - self.moment * self._jacr.T @ self._jacr
         )
-        nominal_weight = weight - self._weight * self._carried
-        subtree_com = data.subtree_com.copy()
-        for j in np.flatnonzero(self._carried):
-            body = arm_body[j]
-            subtree_com[body] = (
-                weight[j] * subtree_com[body] - self._weight * point
-            ) / nominal_weight[j]
-        return mass, subtree_com, nominal_weight
+        self.servo_com[:] = data.subtree_com
+        for j in self._carried:
+            body = self._arm_body[j]
+            self.servo_com[body] = (
+                self._weight[j] * data.subtree_com[body] - self._payload_weight * point
+            ) / self.servo_weight[j]

@@ -17,10 +17,25 @@ actuated velocities, the URDF's effort as ``tau_max`` (MuJoCo joint ``actuatorfr
 URDF's damping and friction as MuJoCo joint ``damping``/``frictionloss`` (fed forward by the
 servo), and the URDF's limits as MuJoCo joint limits; ``G_j g_j`` is the servo's cancellation
 of its own gravity load. The platform command ``[u, omega]`` (clipped to the servo's speed
-limits) becomes wheel speeds ``w_l = (u - omega b / 2) / r``, ``w_r = (u + omega b / 2) / r``
-(track ``b``, wheel radius ``r``), the inverse of ``u = r (w_l + w_r) / 2``,
-``omega = r (w_r - w_l) / b``. Whether the platform then moves as a unicycle is up to the
-contacts: a skid-steer platform slips.
+limits) passes the first-order lags of the platform's time constants in
+:class:`pbvs_pin.servo.ServoModel` (0.26 s and 0.23 s, a Pioneer's identified response), as a
+platform's controller shapes its speed commands; so the platform responds as on the Pinocchio
+plant and as the dynamic compensation (eq. 20) assumes. (Without the lags the wheels' own
+0.05 s servos drove the platform five times faster than eq. 20's model, which then
+over-compensated: TIAGo's Experiment 2 oscillated at 9.5 px RMS above 0.5 Hz, 1.8 px with
+compensation off.) The lagged command becomes wheel speeds ``w_l = (u - omega b / 2) / r``,
+``w_r = (u + omega b / 2) / r``
+(wheel radius ``r``, each clipped at the wheels' speed limit), the inverse of
+``u = r (w_l + w_r) / 2``, ``omega = r (w_r - w_l) / b``, with ``b`` the drive's *effective*
+track ``chi * track`` (:class:`pbvs_pin.base.DifferentialDrive`; ``chi = 1`` for two wheels).
+Whether the platform then moves as a unicycle is up to the contacts: a skid-steer platform
+slips, sideways and, in MuJoCo, more than ``chi`` predicts (a Pioneer 3-AT spinning in place at
+0.4 rad/s turns at 0.30 of ``r (w_r - w_l) / b`` with ``chi`` = 1.46, at 0.24 with ``chi``
+= 1; its wheels stick and slip, their speeds' standard deviation 0.3-0.5 rad/s about their
+0.73 rad/s; the Coulomb balance behind ``chi`` gives 1 / chi = 0.68). So a
+skid-steer platform closes a yaw-rate loop on its gyro (:data:`YAW_INTEGRAL_TIME`), as the
+Pioneer 3-AT's controller can: the yaw rate the wheels are asked for is
+``omega + e_g / T_g``, ``e_g = \int (omega - omega_gyro) dt``, clamped at the yaw-rate limit.
 
 Contacts: only platform geometry meets the ground. Drive wheels have Coulomb friction
 :data:`WHEEL_FRICTION` (condim 3; MuJoCo's default pyramidal cone and Newton solver, 2x faster
@@ -41,12 +56,12 @@ import numpy as np
 import numpy.typing as npt
 import yourdfpy
 from lxml import etree
-from numba import njit
 
 from pbvs_pin import frames
 from pbvs_pin.assembly import DriveAxle, UrdfSource, find_drive_axle
 from pbvs_pin.base import DifferentialDrive
 from pbvs_pin.exceptions import GainError, UrdfError
+from pbvs_pin.mujoco_kernels import arm_gravity_load, servo_commands, true_state
 from pbvs_pin.mujoco_payload import UnknownPayload
 
 if TYPE_CHECKING:
@@ -64,6 +79,14 @@ WHEEL_INTEGRAL_TIME = 0.1
 r"""Integral time ``T_i`` [s] of the wheel servos: with :data:`WHEEL_TIME_CONSTANT` the forward
 loop ``m r^2 / N \ddot e + k_w \dot e + k_w / T_i e = 0`` has damping ratio
 ``sqrt(T_i / tau_w) / 2 = 0.71``."""
+
+YAW_INTEGRAL_TIME = 0.1
+r"""Integral time ``T_g`` [s] of the platform's yaw-rate loop on its gyro: the yaw rate that
+the wheels are asked for is ``omega + e_g / T_g`` with ``e_g = \int (omega - omega_gyro) dt``.
+A skid-steer platform whose wheels reach their speeds turns at ``rho omega`` with ``rho < 1``
+(its slip, which depends on the load, the floor and the rate); the loop's closed-loop time
+constant is then ``T_g / rho``, 0.1-0.5 s, no slower than the platform servo the controller's
+model assumes."""
 
 GROUND = "ground"
 """Name of the ground plane geom."""
@@ -204,6 +227,11 @@ class MujocoPlant:
         wheel_time_constant: Forward-speed time constant ``tau_w`` [s] of the wheel servos'
             proportional action, wheels not slipping, on the URDF's masses.
         wheel_integral_time: Integral time ``T_i`` [s] of the wheel servos' integral action.
+        yaw_integral_time: Integral time ``T_g`` [s] of a skid-steer platform's yaw-rate loop
+            on its gyro (:data:`YAW_INTEGRAL_TIME`); None: no gyro, the wheels get the speeds
+            of ``[u, omega]`` only. A platform with one wheel per side (``track_factor`` 1)
+            does not slip sideways and has no yaw loop (on TIAGo the loop's integral would
+            only add overshoot to its yaw servo).
         mass_scale: Factor on every body's mass and inertia of the URDF (a model error: the
             true robot heavier than the URDF says).
         payload: Mass [kg] at the camera frame's origin that the servos do not know of
@@ -226,6 +254,7 @@ class MujocoPlant:
         friction: float = WHEEL_FRICTION,
         wheel_time_constant: float = WHEEL_TIME_CONSTANT,
         wheel_integral_time: float = WHEEL_INTEGRAL_TIME,
+        yaw_integral_time: float | None = YAW_INTEGRAL_TIME,
         mass_scale: float = 1.0,
         payload: float = 0.0,
         settle: float = 0.0,
@@ -235,6 +264,7 @@ class MujocoPlant:
         for name, value in (
             ("wheel_time_constant", wheel_time_constant),
             ("wheel_integral_time", wheel_integral_time),
+            ("yaw_integral_time", 1.0 if yaw_integral_time is None else yaw_integral_time),
             ("mass_scale", mass_scale),
         ):
             if not (np.isfinite(value) and value > 0):
@@ -280,8 +310,6 @@ class MujocoPlant:
         self._arm_body = model.jnt_bodyid[self._arm_joint]
         self._arm_slide = model.jnt_type[self._arm_joint] == mujoco.mjtJoint.mjJNT_SLIDE
         self._weight = model.body_subtreemass[self._arm_body] * -model.opt.gravity[2]
-        if self.payload is not None:
-            self.payload.attach(model, self._arm_joint)
         self._inverse_time_constants = 1.0 / servo.time_constants[n_base:]
         self._damping = np.ascontiguousarray(servo.damping[n_base:], dtype=float)
         self._friction = np.ascontiguousarray(servo.friction[n_base:], dtype=float)
@@ -289,22 +317,58 @@ class MujocoPlant:
         self._full_mass = np.zeros((model.nv, model.nv))
         wheels = [model.joint(name) for name in self.axle.wheel_joints]
         left = model.body_pos[[j.bodyid[0] for j in wheels], 1] > 0.0
-        half_track = 0.5 * drive.track
+        half_track = 0.5 * drive.effective_track
         self._wheel_map = (
             np.column_stack([np.ones(len(wheels)), np.where(left, -half_track, half_track)])
             / drive.wheel_radius
         )
         self._wheel_dof = np.array([j.dofadr[0] for j in wheels])
+        self._wheel_qpos = np.array([j.qposadr[0] for j in wheels])
+        sides = np.array([left, ~left], dtype=float)  # rows: left, right
+        self._wheel_sides = sides / sides.sum(axis=1, keepdims=True)
         self._n_wheels = len(wheels)
         self._integral_limit = (
             model.jnt_actfrcrange[[j.id for j in wheels], 1] * wheel_integral_time / wheel_gain
         )
         self._wheel_integral = np.zeros(len(wheels))
+        self._wheel_speed_limit = drive.max_wheel_speed
+        if drive.track_factor == 1.0:
+            yaw_integral_time = None
+        self._yaw_gain = 0.0 if yaw_integral_time is None else 1.0 / yaw_integral_time
+        self._yaw_integral_limit = (
+            0.0 if yaw_integral_time is None else servo.speed_limits[1] * yaw_integral_time
+        )
+        self._yaw_integral = np.zeros(1)
+        self._platform_state = np.zeros(n_base)
+        self._platform_blend = 1.0 - np.exp(-dt / servo.time_constants[:n_base])
+        self._neutral = robot.neutral()
+        self._qpos, self._qvel = self.data.qpos, self.data.qvel  # views, valid for data's life
+        self._q: np.ndarray | None = None
+        data = self.data  # the arguments of servo_commands, views that stay valid
+        servo_mass, servo_com, servo_weight = self._full_mass, data.subtree_com, self._weight
+        if self.payload is not None:  # the servos see the robot without it
+            servo_mass, servo_com, servo_weight = self.payload.attach(
+                model, self._arm_joint, self._arm_body, self._weight
+            )
+        self._state_arguments = (
+            servo_mass, data.qvel, data.xmat[1], data.xaxis, data.xanchor, servo_com,
+        )  # fmt: skip
+        self._servo_arguments = (
+            servo.speed_limits, robot.n_base, self._platform_state, self._platform_blend,
+            self._wheel_map, self._wheel_dof,
+            self._wheel_speed_limit, self._wheel_integral, self._integral_limit,
+            wheel_integral_time, self._yaw_integral, self._yaw_gain, self._yaw_integral_limit,
+            self._arm_dof, self._arm_joint, self._arm_body, self._arm_slide, servo_weight,
+            self._inverse_time_constants, self._damping, self._friction, servo.friction_speed,
+            self._compensated, dt, model.actuator_gainprm, model.actuator_biasprm, data.ctrl,
+        )  # fmt: skip
         self.reset(q)
         if settle > 0:
             for _ in range(round(settle / dt)):
                 self.step(np.zeros(robot.n))
             self._wheel_integral[:] = 0.0
+            self._yaw_integral[:] = 0.0
+            self._platform_state[:] = 0.0
             self.data.time = 0.0
 
     # ------------------------------------------------------------------ state
@@ -312,24 +376,36 @@ class MujocoPlant:
         """Place the robot at configuration ``q`` (shape (nq,)), at rest, wheels on the floor."""
         q = self.robot.check_configuration(q)
         mujoco.mj_resetData(self.model, self.data)
+        self._q = None
         self._wheel_integral[:] = 0.0
+        self._yaw_integral[:] = 0.0
+        self._platform_state[:] = 0.0
         yaw = np.arctan2(q[3], q[2])
         self.data.qpos[:7] = [q[0], q[1], 0.0, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
         self.data.qpos[self._arm_qpos] = self.robot.arm_positions(q)
         mujoco.mj_forward(self.model, self.data)
+
+    def _state(self) -> None:
+        """Read ``q``, ``v`` and the body velocity from MuJoCo's state, once per step.
+
+        New arrays every step: a caller may keep the previous step's.
+        """
+        self._q, self._v, self._body = self._neutral.copy(), np.empty(self.robot.n), np.empty(3)
+        true_state(
+            self._qpos, self._qvel, self._arm_qpos, self._arm_dof, self.robot.arm_q_indices,
+            self.robot.arm_continuous, self._q, self._v, self._body,
+        )  # fmt: skip
 
     @property
     def q(self) -> np.ndarray:
         """Configuration of the controller's model. Shape (nq,).
 
         The planar pose of the drive footprint (x, y, cos and sin of its heading), then the arm
-        joints.
+        joints. Read once per step (:func:`true_state`); do not write to it.
         """
-        qpos, rotation = self.data.qpos, self.data.xmat[1].reshape(3, 3)
-        heading = rotation[:2, 0] / np.hypot(rotation[0, 0], rotation[1, 0])
-        q = self.robot.neutral()
-        q[:4] = qpos[0], qpos[1], heading[0], heading[1]
-        return self.robot.with_arm_positions(q, qpos[self._arm_qpos])
+        if self._q is None:
+            self._state()
+        return self._q
 
     def body_velocity(self) -> np.ndarray:
         """Forward and lateral speed [m/s], yaw rate [rad/s] of the drive footprint. Shape (3,).
@@ -337,19 +413,33 @@ class MujocoPlant:
         Speeds are in the footprint's own frame; the lateral speed is the side slip that the
         unicycle model excludes.
         """
-        rotation = self.data.xmat[1].reshape(3, 3)
-        linear = rotation.T @ self.data.qvel[:3]
-        yaw_rate = (rotation @ self.data.qvel[3:6])[2]
-        return np.array([linear[0], linear[1], yaw_rate])
+        if self._q is None:
+            self._state()
+        return self._body.copy()
 
     @property
     def v(self) -> np.ndarray:
-        """Actuated velocity ``[u, omega, arm rates]`` of the true motion. Shape (n,)."""
-        return np.concatenate([self.body_velocity()[[0, 2]], self.data.qvel[self._arm_dof]])
+        """Actuated velocity ``[u, omega, arm rates]`` of the true motion. Shape (n,).
+
+        Read once per step; do not write to it.
+        """
+        if self._q is None:
+            self._state()
+        return self._v
 
     def wheel_speeds(self) -> np.ndarray:
         """Drive wheel angular speeds [rad/s], in the order of ``axle.wheel_joints``."""
         return self.data.qvel[self._wheel_dof].copy()
+
+    @property
+    def wheel_angles(self) -> np.ndarray:
+        """Mean angle [rad] of the left and of the right drive wheels. Shape (2,).
+
+        What a skid-steer platform's wheel encoders give (the wheels of a side are geared
+        together on the Pioneer 3-AT); zero at the start of the run
+        (:meth:`pbvs_pin.sim.sensing.Sensing` takes differences).
+        """
+        return self._wheel_sides @ self.data.qpos[self._wheel_qpos]
 
     # ------------------------------------------------------------------ step
     def arm_gravity(self) -> np.ndarray:
@@ -370,173 +460,20 @@ class MujocoPlant:
 
         ``mj_step1`` computes the current kinematics and mass matrix; the servo commands are
         set (:func:`servo_commands`) and ``mj_step2`` integrates. Wheel references come from
-        ``[u, omega]``; each wheel servo adds integral action ``k_w e_i / T_i`` with
-        ``e_i = \int (w_{ref} - w) dt`` (clamped at the wheel's effort), as a wheel's motor
-        controller does, so that a skid-steer platform keeps turning against its wheels' side
-        friction. An arm servo's velocity actuator gets the scheduled stiffness ``K_j`` as its
-        gain and ``r + (D r + F tanh(r / v_s) + G g) / K`` as its command (the module
-        docstring's law).
+        ``[u, omega]`` and the gyro loop's correction of ``omega``; each wheel servo adds
+        integral action ``k_w e_i / T_i`` with ``e_i = \int (w_{ref} - w) dt`` (clamped at the
+        wheel's effort), as a wheel's motor controller does, so that a skid-steer platform keeps
+        turning against its wheels' side friction. An arm servo's velocity actuator gets the
+        scheduled stiffness ``K_j`` as its gain and ``r + (D r + F tanh(r / v_s) + G g) / K``
+        as its command (the module docstring's law).
         """
-        model, data, servo = self.model, self.data, self.servo
+        model, data = self.model, self.data
         mujoco.mj_step1(model, data)
         mujoco.mj_fullM(model, data, self._full_mass)
-        mass, subtree_com, weight = self._full_mass, data.subtree_com, self._weight
         if self.payload is not None:  # the servos do not know of it
-            mass, subtree_com, weight = self.payload.servo_view(
-                model, data, mass, self._arm_body, weight
-            )
+            self.payload.servo_view(model, data, self._full_mass)
         servo_commands(
-            mass, data.qvel, data.xmat[1], data.xaxis, data.xanchor,
-            subtree_com, np.asarray(v_ref, dtype=float), servo.speed_limits, self.robot.n_base,
-            self._wheel_map, self._wheel_dof, self._wheel_integral, self._integral_limit,
-            self.wheel_integral_time, self._arm_dof, self._arm_joint, self._arm_body,
-            self._arm_slide, weight, self._inverse_time_constants, self._damping,
-            self._friction, servo.friction_speed, self._compensated, self.dt,
-            model.actuator_gainprm, model.actuator_biasprm, data.ctrl,
-        )  # fmt: skip
-        mujoco.mj_step2(model, data)
-
-
-@njit(cache=True)
-def arm_gravity_load(
-    xaxis: np.ndarray,
-    xanchor: np.ndarray,
-    subtree_com: np.ndarray,
-    arm_joint: np.ndarray,
-    arm_body: np.ndarray,
-    slide: np.ndarray,
-    weight: np.ndarray,
-    out: np.ndarray,
-) -> None:
-    r"""Gravity load of each arm joint, ``g_j = -a_j \cdot ((c_j - p_j) \times m_j g)``.
-
-    ``m_j`` and ``c_j`` are the mass and centre of mass of the subtree the joint moves,
-    ``p_j`` and ``a_j`` the joint's anchor and axis (a slide joint: ``-a_j \cdot m_j g``);
-    gravity is along the world's -z, ``g = (0, 0, -g_0)``, so that
-    ``g_j = m_j g_0 (a_x l_y - a_y l_x)`` with ``l = c_j - p_j``.
-
-    Args:
-        xaxis: MuJoCo's ``data.xaxis`` (joint axes, world). Shape (njnt, 3).
-        xanchor: ``data.xanchor`` (joint anchors, world) [m]. Shape (njnt, 3).
-        subtree_com: ``data.subtree_com`` [m]. Shape (nbody, 3).
-        arm_joint: Joint id of each arm joint. Shape (n_arm,).
-        arm_body: Its body id. Shape (n_arm,).
-        slide: Whether it is a slide joint. Shape (n_arm,).
-        weight: ``m_j g_0`` [N]. Shape (n_arm,).
-        out: Written: ``g_j`` [N m or N]. Shape (n_arm,).
-    """
-    for j in range(arm_joint.shape[0]):
-        joint, body = arm_joint[j], arm_body[j]
-        if slide[j]:
-            out[j] = weight[j] * xaxis[joint, 2]
-        else:
-            lever_x = subtree_com[body, 0] - xanchor[joint, 0]
-            lever_y = subtree_com[body, 1] - xanchor[joint, 1]
-            out[j] = weight[j] * (xaxis[joint, 0] * lever_y - xaxis[joint, 1] * lever_x)
-
-
-@njit(cache=True)
-def servo_commands(
-    mass: np.ndarray,
-    qvel: np.ndarray,
-    footprint_rotation: np.ndarray,
-    xaxis: np.ndarray,
-    xanchor: np.ndarray,
-    subtree_com: np.ndarray,
-    v_ref: np.ndarray,
-    speed_limits: np.ndarray,
-    n_base: int,
-    wheel_map: np.ndarray,
-    wheel_dof: np.ndarray,
-    wheel_integral: np.ndarray,
-    integral_limit: np.ndarray,
-    integral_time: float,
-    arm_dof: np.ndarray,
-    arm_joint: np.ndarray,
-    arm_body: np.ndarray,
-    slide: np.ndarray,
-    weight: np.ndarray,
-    inverse_time_constants: np.ndarray,
-    damping: np.ndarray,
-    friction: np.ndarray,
-    friction_speed: float,
-    compensated: np.ndarray,
-    h: float,
-    gainprm: np.ndarray,
-    biasprm: np.ndarray,
-    ctrl: np.ndarray,
-) -> None:
-    r"""Set the wheel and arm servos' gains and commands for one MuJoCo step.
-
-    Wheels (actuators ``0 .. n_w - 1``): ``w_ref = W clip(v_ref[:n_base])``, the integral
-    ``e += h (w_ref - w)`` clamped at ``integral_limit``, command ``w_ref + e / T_i``.
-
-    Arm joint ``j`` (actuator ``n_w + j``): the stiffness of :class:`pbvs_pin.servo.ServoModel`,
-    ``K_j = (sum_k |M_v,jk|) / T_j``, with ``M_v = S^T M S`` in the actuated velocities
-    ``[u, omega, arm]`` (``u`` moves the free joint along the heading, ``omega`` turns it about z;
-    the wheels, on other branches, do not couple with the arm), is the velocity actuator's gain
-    (``gainprm = K``, ``biasprm[2] = -K``); its command is
-    ``r + (D r + F tanh(r / w) + G g) / K`` with ``r`` the clipped reference and the friction
-    band ``w = max(v_s, F h / M_jj)`` of :func:`pbvs_pin.servo.servo_step`.
-
-    Args:
-        mass: MuJoCo's dense mass matrix (``mj_fullM``). Shape (nv, nv).
-        qvel: ``data.qvel``. Shape (nv,).
-        footprint_rotation: ``data.xmat`` of the free body (row-major 3 x 3). Shape (9,).
-        xaxis: ``data.xaxis``. Shape (njnt, 3).
-        xanchor: ``data.xanchor``. Shape (njnt, 3).
-        subtree_com: ``data.subtree_com``. Shape (nbody, 3).
-        v_ref: Velocity reference ``[u, omega, arm rates]``. Shape (n,).
-        speed_limits: Largest reference per velocity. Shape (n,).
-        n_base: Number of platform velocities.
-        wheel_map: ``W``, wheel speeds from ``[u, omega]``. Shape (n_w, n_base).
-        wheel_dof: The wheels' dof addresses. Shape (n_w,).
-        wheel_integral: Updated: the wheels' integral ``e`` [rad]. Shape (n_w,).
-        integral_limit: Its clamp [rad]. Shape (n_w,).
-        integral_time: ``T_i`` [s].
-        arm_dof: The arm joints' dof addresses. Shape (n_arm,).
-        arm_joint: Joint id of each arm joint (:func:`arm_gravity_load`). Shape (n_arm,).
-        arm_body: Its body id. Shape (n_arm,).
-        slide: Whether it is a slide joint. Shape (n_arm,).
-        weight: ``m_j g_0`` of its subtree [N]. Shape (n_arm,).
-        inverse_time_constants: ``1 / T_j`` of the arm servos. Shape (n_arm,).
-        damping: ``D_j``. Shape (n_arm,).
-        friction: ``F_j``. Shape (n_arm,).
-        friction_speed: ``v_s``.
-        compensated: Diagonal of ``G`` (1.0 or 0.0). Shape (n_arm,).
-        h: Step [s].
-        gainprm: Written: ``model.actuator_gainprm``. Shape (nu, 10).
-        biasprm: Written: ``model.actuator_biasprm``. Shape (nu, 10).
-        ctrl: Written: ``data.ctrl``. Shape (nu,).
-    """
-    n_wheels = wheel_dof.shape[0]
-    for i in range(n_wheels):
-        wheel_ref = 0.0
-        for k in range(n_base):
-            wheel_ref += wheel_map[i, k] * min(max(v_ref[k], -speed_limits[k]), speed_limits[k])
-        error = wheel_integral[i] + h * (wheel_ref - qvel[wheel_dof[i]])
-        wheel_integral[i] = min(max(error, -integral_limit[i]), integral_limit[i])
-        ctrl[i] = wheel_ref + wheel_integral[i] / integral_time
-    n_arm = arm_dof.shape[0]
-    gravity = np.empty(n_arm)
-    arm_gravity_load(xaxis, xanchor, subtree_com, arm_joint, arm_body, slide, weight, gravity)
-    heading_x, heading_y = footprint_rotation[0], footprint_rotation[3]
-    norm = np.hypot(heading_x, heading_y)
-    for j in range(n_arm):
-        a = arm_dof[j]
-        row = abs((mass[a, 0] * heading_x + mass[a, 1] * heading_y) / norm) + abs(mass[a, 5])
-        for k in range(n_arm):
-            row += abs(mass[a, arm_dof[k]])
-        gain = inverse_time_constants[j] * row
-        limit = speed_limits[n_base + j]
-        reference = min(max(v_ref[n_base + j], -limit), limit)
-        width = max(friction_speed, friction[j] * h / mass[a, a])
-        feed_forward = (
-            damping[j] * reference
-            + friction[j] * np.tanh(reference / width)
-            + compensated[j] * gravity[j]
+            *self._state_arguments, np.asarray(v_ref, dtype=float), *self._servo_arguments
         )
-        actuator = n_wheels + j
-        gainprm[actuator, 0] = gain
-        biasprm[actuator, 2] = -gain
-        ctrl[actuator] = reference + feed_forward / gain
+        mujoco.mj_step2(model, data)
+        self._q = None

@@ -18,8 +18,9 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from pbvs_pin.base import DifferentialDrive
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.servo import servo_step
+from pbvs_pin.servo import pack_servos, packed_servo_step
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -28,6 +29,11 @@ if TYPE_CHECKING:
 
 class Plant:
     """State ``(q, v)`` of the true robot, advanced by velocity references.
+
+    A differential drive's wheels are not in the state; :attr:`wheel_angles` integrates the
+    wheel rotations that the no-slip motion implies, ``w = W [v_x, v_y, omega_z]``
+    (:meth:`pbvs_pin.base.DifferentialDrive.wheel_map`), so that the wheel encoders read the
+    same quantity on both engines (:class:`pbvs_pin.mujoco_plant.MujocoPlant`).
 
     Args:
         robot: The true robot.
@@ -52,10 +58,14 @@ class Plant:
         self.robot, self.loop, self.dt, self.tuned = robot, loop, dt, tuned
         self.q = robot.check_configuration(q).copy()
         self.gravity_weight = loop.gravity_weight
-        self._inverse_time_constants = 1.0 / loop.time_constants
+        self._params, self._indices = pack_servos(loop, robot.selection, self.gravity_weight, dt)
         self._v_pin = np.zeros(robot.model.nv)
         self._displacement = np.zeros(robot.model.nv)
         self.v = np.zeros(robot.n)
+        drive = robot.base
+        self._wheel_map = drive.wheel_map() if isinstance(drive, DifferentialDrive) else None
+        self.wheel_angles = np.zeros(2)
+        """Left and right wheel angles [rad] (zero at the start). Shape (2,)."""
 
     @property
     def v(self) -> np.ndarray:
@@ -67,27 +77,38 @@ class Plant:
         self._v = np.asarray(value, dtype=float)
         self._v_pin = self.robot.selection @ self._v
 
-    def step(self, v_ref: np.ndarray) -> None:
+    def step(
+        self,
+        v_ref: np.ndarray,
+        terms: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    ) -> None:
         """Advance by one step ``dt`` under the velocity reference ``v_ref`` (shape (n,)).
 
         Pinocchio gives the rigid-body terms; :func:`pbvs_pin.servo.servo_step` solves the
         linearly implicit step; ``pin.integrate`` moves ``q`` on its manifold.
+
+        Args:
+            v_ref: Velocity reference. Shape (n,).
+            terms: ``pin.crba``, ``pin.nonLinearEffects`` and ``pin.computeGeneralizedGravity``
+                already computed at this plant's ``(q, S v)`` on a model equal to its own (the
+                controller's, when it has no model error); None computes them.
         """
-        model, data, servo = self.robot.model, self.robot.data, self.loop
-        mass = pin.crba(model, data, self.q)
-        bias = pin.nonLinearEffects(model, data, self.q, self._v_pin)
-        servo_mass = mass
-        if self.tuned is None:
+        model, data = self.robot.model, self.robot.data
+        if terms is None:
+            mass = pin.crba(model, data, self.q)
+            bias = pin.nonLinearEffects(model, data, self.q, self._v_pin)
             gravity = pin.computeGeneralizedGravity(model, data, self.q)
         else:
+            mass, bias, gravity = terms
+        servo_mass = mass
+        if self.tuned is not None:  # the servos' own view: the robot they were tuned on
             tuned = self.tuned
             servo_mass = pin.crba(tuned.model, tuned.data, self.q)
             gravity = pin.computeGeneralizedGravity(tuned.model, tuned.data, self.q)
-        self._v = servo_step(
-            mass, servo_mass, bias, gravity, self.robot.selection, self._inverse_time_constants,
-            servo.damping, servo.friction, servo.friction_speed, servo.effort,
-            servo.speed_limits, self.gravity_weight, servo.stop_index,
-            self.q[servo.stop_q_index], servo.lower, servo.upper, self._v,
-            np.asarray(v_ref, dtype=float), self.dt, self._v_pin, self._displacement,
+        self._v = packed_servo_step(
+            mass, servo_mass, bias, gravity, self._params, self._indices, self.q, self._v,
+            np.asarray(v_ref, dtype=float), self._v_pin, self._displacement,
         )  # fmt: skip
         self.q = pin.integrate(model, self.q, self._displacement)
+        if self._wheel_map is not None:
+            self.wheel_angles += self._wheel_map @ self._displacement[:3]

@@ -239,6 +239,94 @@ class ServoModel:
         )
 
 
+def pack_servos(
+    servo: ServoModel, selection: np.ndarray, gravity_weight: np.ndarray, h: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The constants of :func:`servo_step` in one float and one integer array.
+
+    A compiled call from Python costs about 0.07 us per argument, so the plant's 1 kHz step
+    passes these two arrays (read by :func:`packed_servo_step`) instead of 15 arguments.
+
+    Args:
+        servo: The servos.
+        selection: ``S``. Shape (nv, n).
+        gravity_weight: Diagonal of ``I - G``. Shape (n,).
+        h: Step [s].
+
+    Returns:
+        ``params``: ``1 / T``, ``D``, ``F``, effort, speed limits, ``I - G`` (n each), the
+        stops' lower and upper limits (k each), ``S`` row-major (nv n), ``v_s``, ``h``;
+        ``indices``: ``n, nv, k``, the stops' actuated indices (k), their indices in ``q`` (k).
+    """
+    nv, n = selection.shape
+    params = np.concatenate(
+        [
+            1.0 / servo.time_constants,
+            servo.damping,
+            servo.friction,
+            servo.effort,
+            servo.speed_limits,
+            gravity_weight,
+            servo.lower,
+            servo.upper,
+            selection.ravel(),
+            [servo.friction_speed, h],
+        ]
+    ).astype(float)
+    k = servo.stop_index.shape[0]
+    indices = np.concatenate([[n, nv, k], servo.stop_index, servo.stop_q_index])
+    return params, indices.astype(np.int64)
+
+
+@njit(cache=True)
+def packed_servo_step(
+    mass_upper: np.ndarray,
+    servo_mass_upper: np.ndarray,
+    bias: np.ndarray,
+    gravity: np.ndarray,
+    params: np.ndarray,
+    indices: np.ndarray,
+    q: np.ndarray,
+    v: np.ndarray,
+    v_ref: np.ndarray,
+    v_pin_out: np.ndarray,
+    displacement_out: np.ndarray,
+) -> np.ndarray:
+    """:func:`servo_step` with its constants packed by :func:`pack_servos`.
+
+    Args:
+        mass_upper: CRBA mass matrix, upper triangle filled. Shape (nv, nv).
+        servo_mass_upper: The mass matrix the servos' stiffness is scheduled with
+            (:func:`servo_step`). Shape (nv, nv).
+        bias: ``pin.nonLinearEffects`` at ``S v``. Shape (nv,).
+        gravity: The gravity load the servos cancel (:func:`servo_step`). Shape (nv,).
+        params: Float constants of :func:`pack_servos`.
+        indices: Integer constants of :func:`pack_servos`.
+        q: Configuration now (the stops' positions are read from it). Shape (nq,).
+        v: Actuated velocity now. Shape (n,).
+        v_ref: Velocity reference. Shape (n,).
+        v_pin_out: Written: ``S v_{k+1}``. Shape (nv,).
+        displacement_out: Written: ``S v_{k+1} h``. Shape (nv,).
+
+    Returns:
+        ``v_{k+1}``. Shape (n,).
+    """
+    n, nv, k = indices[0], indices[1], indices[2]
+    stop_index, stop_q_index = indices[3 : 3 + k], indices[3 + k : 3 + 2 * k]
+    positions = np.empty(k)
+    for s in range(k):
+        positions[s] = q[stop_q_index[s]]
+    a = 6 * n + 2 * k
+    selection = params[a : a + nv * n].reshape((nv, n))
+    return servo_step(
+        mass_upper, servo_mass_upper, bias, gravity, selection, params[0:n], params[n : 2 * n],
+        params[2 * n : 3 * n], params[a + nv * n], params[3 * n : 4 * n],
+        params[4 * n : 5 * n], params[5 * n : 6 * n], stop_index, positions,
+        params[6 * n : 6 * n + k], params[6 * n + k : a], v, v_ref, params[a + nv * n + 1],
+        v_pin_out, displacement_out,
+    )  # fmt: skip
+
+
 @njit(cache=True)
 def servo_step(
     mass_upper: np.ndarray,

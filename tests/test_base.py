@@ -11,6 +11,7 @@ import pytest
 from conftest import URDF_DIR, urdf_wheels
 
 from pbvs_pin import DifferentialDrive, FixedBase, GainError, Omnidirectional
+from pbvs_pin.base import skid_steer_factor
 
 
 def unicycle_arc(x0, y0, th0, u, w, t):
@@ -125,9 +126,69 @@ def test_pioneer_drive_read_from_urdf(load, name):
     assert isinstance(robot.base, DifferentialDrive)
     assert robot.base.track == pytest.approx(track)
     assert robot.base.wheel_radius == pytest.approx(radius)
+    # four wheels at x = +-0.134 m: skid-steer, chi = (a^2 + b^2) / b^2
+    xs = np.array([centre[0] for centre, _, _ in wheels])
+    half_wheelbase, half_track = np.abs(xs - xs.mean()).mean(), track / 2
+    assert half_wheelbase == pytest.approx(0.134)
+    chi = (half_wheelbase**2 + half_track**2) / half_track**2
+    assert robot.base.track_factor == pytest.approx(chi, rel=1e-12)
     np.testing.assert_allclose(
-        robot.velocity_limits[:2], [radius * w_max, 2 * radius * w_max / track], rtol=1e-12
+        robot.velocity_limits[:2], [radius * w_max, 2 * radius * w_max / (chi * track)], rtol=1e-12
     )
+
+
+def _coulomb_spin_ratio(wheels: np.ndarray) -> float:
+    """Yaw rate over ``r (w_r - w_l) / track`` of a spin in place, rigid Coulomb friction.
+
+    Wheels at ``wheels`` (x, y) spin at ``+-omega_c * b``; the platform's yaw rate is the root
+    of the net yaw moment of the friction forces ``-N s_i / |s_i|`` (equal loads), found by
+    bisection.
+    """
+    half_track = np.abs(wheels[:, 1]).mean()
+
+    def moment(omega: float) -> float:
+        rolling = np.sign(wheels[:, 1]) * half_track  # wheel surface speed, omega_c = 1
+        slip = np.column_stack([-omega * wheels[:, 1] + rolling, omega * wheels[:, 0]])
+        force = -slip / np.maximum(np.linalg.norm(slip, axis=1, keepdims=True), 1e-300)
+        return float(np.sum(wheels[:, 0] * force[:, 1] - wheels[:, 1] * force[:, 0]))
+
+    low, high = 0.0, 1.0
+    for _ in range(60):
+        middle = 0.5 * (low + high)
+        low, high = (low, middle) if moment(middle) < 0 else (middle, high)
+    return 0.5 * (low + high)
+
+
+@pytest.mark.parametrize(
+    ("wheels", "chi"),
+    [
+        ([[0.0, 0.2], [0.0, -0.2]], 1.0),
+        ([[0.134, 0.197], [0.134, -0.197], [-0.134, 0.197], [-0.134, -0.197]], None),
+        ([[0.3, 0.25], [0.3, -0.25], [-0.3, 0.25], [-0.3, -0.25]], None),
+    ],
+    ids=["two-wheel", "pioneer-3at", "long"],
+)
+def test_skid_steer_factor_is_the_coulomb_spin_balance(wheels, chi):
+    """chi from the formula against the root of the moment balance, found numerically."""
+    wheels = np.asarray(wheels)
+    factor = skid_steer_factor(wheels)
+    assert factor == pytest.approx(1.0 / _coulomb_spin_ratio(wheels), rel=1e-9)
+    if chi is not None:
+        assert factor == chi
+
+
+def test_effective_track_sets_wheel_speeds_and_yaw_limit():
+    drive = DifferentialDrive(wheel_radius=0.1, track=0.4, max_wheel_speed=5.0, track_factor=1.5)
+    assert drive.effective_track == pytest.approx(0.6)
+    left, right = drive.wheel_speeds(0.0, 1.0)
+    assert (left, right) == pytest.approx((-0.3 / 0.1, 0.3 / 0.1))
+    assert drive.velocity_limits()[1] == pytest.approx(2 * 0.1 * 5.0 / 0.6)
+
+
+@pytest.mark.parametrize("value", [0.9, float("nan")])
+def test_track_factor_below_one_is_refused(value):
+    with pytest.raises(GainError, match="track_factor"):
+        DifferentialDrive(wheel_radius=0.1, track=0.4, max_wheel_speed=5.0, track_factor=value)
 
 
 @pytest.mark.parametrize("field", ["wheel_radius", "track", "max_wheel_speed"])

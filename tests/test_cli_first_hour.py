@@ -250,3 +250,11 @@ def test_run_goes_on_without_a_live_view(tmp_path, capsys, monkeypatch):
     assert len(hint) == 1
     assert "no live view" in hint[0] and "--html FILE" in hint[0]
     assert RunLog.load(out)["t"][-1] > 0.2
+
+
+def test_compile_command_announces_the_compile_and_its_time(capsys):
+    """`pbvs-pin compile` says what it does, then how long it took (warm here: a check)."""
+    assert main(["compile"]) in (0, None)
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith(("compiling the control kernels", "control kernels already"))
+    assert re.fullmatch(r"done in \d+\.\d s; runs start at once from now on", out[-1])

@@ -95,9 +95,9 @@ def test_mujoco_payload_matches_pinocchio_and_its_servos_see_the_robot_without_i
         gravity_pin = pin.computeGeneralizedGravity(loaded.model, loaded.data, q)[pin_dofs]
         assert np.allclose(data.qfrc_bias[plant._arm_dof], gravity_pin, rtol=1e-6, atol=1e-9)
         # what the servos schedule with and cancel: the robot without the payload
-        mass, subtree_com, weight = plant.payload.servo_view(
-            model, data, full, plant._arm_body, plant._weight
-        )
+        plant.payload.servo_view(model, data, full)
+        mass, subtree_com = plant.payload.servo_mass, plant.payload.servo_com
+        weight = plant.payload.servo_weight
         mujoco.mj_fullM(bare.model, bare.data, bare_full)
         assert np.allclose(mass[arm], bare_full[arm], rtol=1e-9, atol=1e-12)
         assert np.allclose(weight, bare._weight, rtol=1e-12)

@@ -142,7 +142,7 @@ def test_with_a_hold_a_frame_older_than_it_is_not_used(hold):
     """No frame arrives between 0 s and 2 s (a 0.5 Hz camera): with a hold, the loop servoes on
     the prediction for at most ``hold`` seconds after the frame, then its command is zero."""
     values = dict(EXACT, **{"duration": 3.0, "camera.rate": 0.5, "estimator.predict": True,
-                            "estimator.hold": hold})  # fmt: skip
+                            "estimator.hold": hold, "camera.latency": 0.0})  # fmt: skip
     log = simulate(load_scenario("experiment1").with_values(**values))
     t, speed = log["t"], np.linalg.norm(log["u"], axis=1)
     assert np.all(speed[(t > 0.05) & (t < 0.35)] > 0)  # servoing on the prediction

@@ -263,3 +263,37 @@ def test_light_joint_with_friction_does_not_chatter(tmp_path):
         plant.step(v_ref)
         worst = max(worst, abs(plant.v[pitch]))
     assert worst < 0.01, f"pitch joint reached {worst:.3f} rad/s under a 0.003 rad/s command"
+
+
+def test_packed_servo_step_is_servo_step_with_its_constants_packed(damped):
+    """Every constant lands where servo_step reads it: stops, friction, limits, S, h."""
+    from pbvs_pin.servo import pack_servos, packed_servo_step, servo_step
+
+    servo = ServoModel.from_robot(damped)
+    model, data = damped.model, damped.data
+    rng = np.random.default_rng(15)
+    params, indices = pack_servos(servo, damped.selection, servo.gravity_weight, DT)
+    for _ in range(5):
+        q = random_configuration(damped, rng)
+        v, v_ref = rng.normal(size=damped.n), 3.0 * rng.normal(size=damped.n)
+        terms = (
+            pin.crba(model, data, q).copy(),
+            pin.nonLinearEffects(model, data, q, damped.selection @ v).copy(),
+            pin.computeGeneralizedGravity(model, data, q).copy(),
+        )
+        outputs = [np.zeros(model.nv) for _ in range(4)]
+        mass, bias, gravity = terms
+        tuned = 1.5 * mass  # the servos' own mass matrix (a payload they do not know of)
+        packed = packed_servo_step(
+            mass, tuned, bias, gravity, params, indices, q, v, v_ref, *outputs[:2]
+        )
+        direct = servo_step(
+            mass, tuned, bias, gravity, damped.selection, 1.0 / servo.time_constants, servo.damping,
+            servo.friction, servo.friction_speed, servo.effort, servo.speed_limits,
+            servo.gravity_weight, servo.stop_index, q[servo.stop_q_index], servo.lower,
+            servo.upper, v, v_ref, DT, *outputs[2:],
+        )  # fmt: skip
+        np.testing.assert_array_equal(packed, direct)
+        np.testing.assert_array_equal(outputs[0], outputs[2])
+        np.testing.assert_array_equal(outputs[1], outputs[3])
+    assert servo.stop_index.size > 0 and np.any(servo.friction > 0)

@@ -88,7 +88,9 @@ def test_base_motion_and_camera_pitch_leave_an_upright_image_upright(load):
 # ---------------------------------------------------------------- projected null space
 def _setup(name: str, experiment: str = "experiment4", **gains):
     """A loop setup on ``name`` with a first frame taken, the controller's gains replaced."""
-    scenario = load_scenario(experiment).with_values(**{"robot.name": name})
+    scenario = load_scenario(experiment).with_values(
+        **{"robot.name": name, "camera.latency": 0.0}  # the first frame arrives at once
+    )
     setup = build(scenario)
     if gains:
         setup.controller = PassivityController(
@@ -129,8 +131,14 @@ def test_restoring_term_is_off_without_roll_at_home(load):
 
 # ---------------------------------------------------------------- reference robot unchanged
 def test_reference_robot_output_is_bit_identical_with_and_without():
-    """Experiment 2 (every objective on), 3 s: same u, v_ref and q to the last bit."""
-    scenario = load_scenario("experiment2").with_values(duration=3.0)
+    """Experiment 2 (every objective on), 3 s: same u, v_ref and q to the last bit.
+
+    Without the camera's latency: the net's margin is then the full one, which the reference
+    robot stays below (with one frame of latency the halved margin acts).
+    """
+    scenario = load_scenario("experiment2").with_values(
+        duration=3.0, **{"camera.latency": 0.0}
+    )
     with_feature = loop.simulate(scenario)
     without = loop.simulate(
         scenario.with_values(**{"controller.upright": False, "controller.loop_gain_margin": 1e12})
@@ -204,4 +212,4 @@ def test_loop_gain_net_is_flagged_in_the_log():
     seen = np.isfinite(log["loop_gain"])
     assert seen.sum() > 10
     np.testing.assert_array_equal(log["gain_limited"][seen], log["loop_gain"][seen] > 1e-3)
-    assert log["gain_limited"].all()
+    assert log["gain_limited"][seen].all()

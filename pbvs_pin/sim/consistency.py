@@ -14,7 +14,8 @@ at once and refuse what a user could not have meant, before any robot is built:
   are captured at the first control step at or after their due time (the camera is not
   synchronised with the controller), so the camera rate need not divide the control rate.
 - **Time**: the run lasts at least :data:`MIN_LOG_SAMPLES` log periods; the latency is
-  shorter than the run and a second frame is delivered before the run ends.
+  shorter than the run and a second frame is delivered before the run ends (the latency
+  defaults to one frame period: :attr:`~pbvs_pin.sim.sections.CameraSection.delivery_latency`).
 - **Obstacles**: none overlaps the platform's footprint (``[platform]``) at the start, where
   the base stands at the origin with heading 0.
 
@@ -108,6 +109,7 @@ def _check_rates(scenario: ScenarioView) -> None:
     control_rate = scenario.controller.rate
     control_dt = 1.0 / control_rate
     camera = scenario.camera
+    latency = camera.delivery_latency
     if plant_dt >= duration:
         raise GainError(
             f"expected a plant step shorter than the run (duration = {duration:g} s), got "
@@ -158,17 +160,16 @@ def _check_rates(scenario: ScenarioView) -> None:
             f"at simulation.log_rate = {1.0 / log_dt:g} Hz), got {duration:g} s",
             "duration",
         )
-    if camera.latency >= duration:
+    if camera.latency is not None and latency >= duration:  # the default is the rate's fault
         raise GainError(
             f"expected a latency shorter than the run (duration = {duration:g} s), got "
-            f"{camera.latency:g} s: no frame would arrive",
+            f"{latency:g} s: no frame would arrive",
             "camera.latency",
         )
-    if camera.latency + 1.0 / camera.rate >= duration:
+    if latency + 1.0 / camera.rate >= duration:
         raise GainError(
             f"{camera.rate:g} Hz delivers at most one frame in {duration:g} s (latency "
-            f"{camera.latency:g} s); expected more than "
-            f"{1.0 / (duration - camera.latency):.4g} Hz",
+            f"{latency:g} s); expected more than {1.0 / (duration - latency):.4g} Hz",
             "camera.rate",
         )
 

@@ -10,6 +10,16 @@ with the controller's (possibly wrong) kinematic model. The true-state set (``nu
 ``storage_true``, ``passivity_input_true``) is derived after the run from the true
 configuration, the true target and the true robot's ``J`` and ``J_o``: one consistent set, in
 which the identity behind eq. (9) holds up to sampling.
+
+What the controller read of the robot (:mod:`pbvs_pin.sim.sensing`) is logged beside the
+truth: ``v_measured`` beside ``v``, ``platform_pose_measured`` (odometry, or the true pose
+with perfect localisation) beside ``platform_pose`` (``[x, y, heading]`` [m, m, rad]). The
+platform's slip is logged as ``body_velocity``, its true ``[forward, lateral, yaw rate]``
+[m/s, m/s, rad/s] over each log interval (from the true poses, in the platform frame at the
+interval's mid heading), beside ``wheel_velocity``, the ``[u, omega]`` its wheels' rotation
+implies over the same interval (from the true ``wheel_angles``); a platform that does not slip
+has zero lateral speed and equal yaw rates. ``meta["odometry_drift"]`` and ``meta["slip"]``
+summarise them (:func:`sensing_meta`).
 """
 
 from __future__ import annotations
@@ -26,14 +36,17 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 
 import numpy as np
 
+from pbvs_pin.base import DifferentialDrive
 from pbvs_pin.exceptions import OutputError
 from pbvs_pin.manipulability import arm_jacobian, manipulability
 from pbvs_pin.sim.obstacles import clearance
 from pbvs_pin.sim.scenario import obstacle_table
+from pbvs_pin.sim.sensing import planar_pose
 
 if TYPE_CHECKING:
     from pbvs_pin.control.kinematic import ControlOutput
     from pbvs_pin.sim.perception import Perception
+    from pbvs_pin.sim.sensing import Sensing
     from pbvs_pin.sim.setup import Setup
 
 CHANNELS = (
@@ -42,7 +55,8 @@ CHANNELS = (
     "clearance", "manipulability", "storage", "storage_v2", "nu", "passivity_input",
     "lambda_min", "gamma", "saturated", "damped", "target_lost", "valid", "loop_gain",
     "gain_limited", "upright_angle", "nu_true", "storage_true", "passivity_input_true",
-    "xi_measured", "predicted",
+    "xi_measured", "predicted", "v_measured", "platform_pose", "platform_pose_measured",
+    "wheel_angles", "body_velocity", "wheel_velocity",
 )  # fmt: skip
 """Names of the arrays in a log."""
 
@@ -50,7 +64,7 @@ RECORDED = (
     "t", "xi", "u", "v_ref", "v", "q", "target_estimate", "target_velocity_estimate",
     "obstacle_distance", "obstacle_angle", "storage", "storage_v2", "nu", "saturated", "damped",
     "target_lost", "valid", "loop_gain", "gain_limited", "upright_angle", "xi_measured",
-    "predicted",
+    "predicted", "v_measured", "platform_pose_measured", "wheel_angles",
 )  # fmt: skip
 """Channels copied in the loop; :meth:`RunRecorder.finish` derives the others."""
 
@@ -189,16 +203,18 @@ class RunRecorder:
     algebra instead of a dozen small NumPy calls per sample).
     """
 
-    def __init__(self, setup: Setup, footprint: np.ndarray) -> None:
+    def __init__(self, setup: Setup, footprint: np.ndarray, sensing: Sensing) -> None:
         """Prepare empty channels.
 
         Args:
             setup: The run's blocks.
             footprint: Platform boundary points in its own frame [m], for the clearance.
                 Shape (k, 2).
+            sensing: What the controller reads of the robot.
         """
         self.setup = setup
         self.footprint = footprint
+        self.sensing = sensing
         self.rows: dict[str, list] = {name: [] for name in RECORDED}
         self._jacobians: list[np.ndarray] = []
         self._object_jacobians: list[np.ndarray] = []
@@ -230,6 +246,9 @@ class RunRecorder:
             ("target_lost", perception.lost), ("valid", output.valid),
             ("loop_gain", output.loop_gain), ("gain_limited", output.gain_limited),
             ("upright_angle", output.upright_angle), ("predicted", perception.predicting),
+            ("v_measured", self.sensing.v),
+            ("platform_pose_measured", planar_pose(setup.robot, self.sensing.q)),
+            ("wheel_angles", plant.wheel_angles),
         ):  # fmt: skip
             rows[name].append(np.array(value, copy=True))
         unseen = np.full(setup.features.size, np.nan)
@@ -273,6 +292,9 @@ class RunRecorder:
         )
         derived.update(_true_passivity_terms(setup, derived, recorded["v"]))
         derived["xi_d"] = np.broadcast_to(setup.xi_d, recorded["xi"].shape).copy()
+        derived.update(
+            _slip(setup, recorded["t"], derived["platform_pose"], recorded["wheel_angles"])
+        )
         every = {**recorded, **derived}
         channels = {name: every[name] for name in CHANNELS}
         wall_time = time.perf_counter() - started
@@ -306,6 +328,7 @@ class RunRecorder:
                 "width": setup.robot.camera.width,
                 "height": setup.robot.camera.height,
             },
+            **sensing_meta(every),
         }
         return RunLog(channels, meta)
 
@@ -323,6 +346,7 @@ def _derived_in_one_pass(
         "target": np.empty((samples, 3)),
         "target_velocity": np.empty((samples, 3)),
         "clearance": np.empty(samples),
+        "platform_pose": np.empty((samples, 3)),
         "jacobian_true": np.full((samples, r, model.n), np.nan),
         "object_jacobian_true": np.full((samples, r, 3), np.nan),
     }
@@ -335,9 +359,8 @@ def _derived_in_one_pass(
             _, out["jacobian_true"][i], out["object_jacobian_true"][i] = (
                 setup.features.jacobians(robot, q, *centres)
             )
-        base = robot.base_pose(q)
-        yaw = float(np.arctan2(base.rotation[1, 0], base.rotation[0, 0]))
-        out["clearance"][i] = clearance(setup.obstacles, footprint, *base.translation[:2], yaw)
+        out["platform_pose"][i] = planar_pose(robot, q)
+        out["clearance"][i] = clearance(setup.obstacles, footprint, *out["platform_pose"][i])
         out["arm"][i] = model.arm_positions(q)
         out["target"][i] = centres.mean(axis=0)
         out["target_velocity"][i] = target.motion.velocity(t)
@@ -415,3 +438,71 @@ def _true_passivity_terms(
         pinv = setup.controller.pseudo_inverse(jacobian[i])[0]
         inputs[i] = v[i] + pinv @ (object_jacobian[i] @ derived["target_velocity"][i])
     return {"nu_true": nu, "storage_true": storage, "passivity_input_true": inputs}
+
+
+def _slip(
+    setup: Setup, times: np.ndarray, poses: np.ndarray, wheel_angles: np.ndarray
+) -> dict[str, np.ndarray]:
+    r"""``body_velocity`` and ``wheel_velocity`` over each log interval (module docstring).
+
+    Over ``[t_{i-1}, t_i]``, with ``d`` the true displacement and ``theta_m`` the mid heading,
+
+    .. math:: [v_f, v_l] = R(\theta_m)^T d / \Delta t,\quad
+              \dot\theta = \Delta\theta / \Delta t,\quad
+              [u, \omega] = P\, \Delta a / \Delta t
+
+    (``P``: :meth:`pbvs_pin.base.DifferentialDrive.platform_velocity`, ``a`` the wheel angles).
+    The chord of an arc of constant curvature points along its mid heading, so that a
+    platform that does not slip has ``v_l`` near zero (zero on such an arc). The first sample
+    (no interval) is zero; a platform without a differential drive has no ``wheel_velocity``
+    (NaN).
+    """
+    samples = len(times)
+    body = np.zeros((samples, 3))
+    wheel = np.zeros((samples, 2))
+    if samples < 2:
+        return {"body_velocity": body, "wheel_velocity": wheel}
+    dt = np.diff(times)[:, None]
+    theta = np.unwrap(poses[:, 2])
+    mid = 0.5 * (theta[1:] + theta[:-1])
+    step = np.diff(poses[:, :2], axis=0)
+    c, s = np.cos(mid), np.sin(mid)
+    body[1:, 0] = (c * step[:, 0] + s * step[:, 1]) / dt[:, 0]
+    body[1:, 1] = (-s * step[:, 0] + c * step[:, 1]) / dt[:, 0]
+    body[1:, 2] = np.diff(theta) / dt[:, 0]
+    drive = setup.model.base
+    if isinstance(drive, DifferentialDrive):
+        wheel[1:] = np.array([drive.platform_velocity(w) for w in np.diff(wheel_angles, axis=0)])
+        wheel[1:] /= dt
+    else:
+        wheel[:] = np.nan
+    return {"body_velocity": body, "wheel_velocity": wheel}
+
+
+def sensing_meta(channels: dict[str, np.ndarray]) -> dict[str, Any]:
+    """The run's odometry drift at the end and the platform's measured slip.
+
+    Returns:
+        ``odometry_drift``: ``position`` [m] and ``heading`` [rad] (wrapped to
+        ``(-pi, pi]``, absolute) between the measured and the true platform pose at the last
+        sample. ``slip``: ``lateral_speed_rms`` [m/s], the RMS of the true lateral speed, and
+        ``yaw_rate_ratio``, the least-squares slope of the true yaw rate on the yaw rate the
+        wheels imply (1: no slip; None when the wheels never turn the platform or the
+        platform has no wheels).
+    """
+    true, measured = channels["platform_pose"][-1], channels["platform_pose_measured"][-1]
+    heading = float(np.angle(np.exp(1j * (measured[2] - true[2]))))
+    body, wheel = channels["body_velocity"], channels["wheel_velocity"]
+    implied = wheel[:, 1]
+    energy = float(np.sum(implied * implied)) if np.all(np.isfinite(implied)) else 0.0
+    ratio = float(np.sum(body[:, 2] * implied) / energy) if energy > 1e-12 else None
+    return {
+        "odometry_drift": {
+            "position": float(np.hypot(*(measured[:2] - true[:2]))),
+            "heading": abs(heading),
+        },
+        "slip": {
+            "lateral_speed_rms": float(np.sqrt(np.mean(body[:, 1] ** 2))),
+            "yaw_rate_ratio": ratio,
+        },
+    }

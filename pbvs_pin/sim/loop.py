@@ -1,9 +1,11 @@
 """The closed loop of the paper's Fig. 3, simulated.
 
-Data flows one way at every control step: camera frames (after latency) and encoders ->
-feature error, ``J`` and ``J_o`` from the *controller's* model -> target velocity estimate ->
-secondary objectives -> kinematic controller (eq. 34) -> dynamic compensation (eq. 20) ->
-plant (eq. 1 with the *true* model), integrated at its own step.
+Data flows one way at every control step: camera frames (after latency) and the robot's
+sensors (encoders, wheel odometry, laser: :mod:`pbvs_pin.sim.sensing`) -> feature error,
+``J`` and ``J_o`` from the *controller's* model -> target velocity estimate -> secondary
+objectives -> kinematic controller (eq. 34) -> dynamic compensation (eq. 20) -> plant (eq. 1
+with the *true* model), integrated at its own step. The camera sees the true scene from the
+true camera pose; the controller only ever gets the frames and the sensors' readings.
 """
 
 from __future__ import annotations
@@ -20,11 +22,13 @@ from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
 from pbvs_pin.control.step import FusedControlStep
 from pbvs_pin.control.upright import upright_row
 from pbvs_pin.exceptions import RunInterrupted
+from pbvs_pin.plant import Plant
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog, RunRecorder
 from pbvs_pin.sim.obstacles import footprint_points
 from pbvs_pin.sim.perception import Perception
 from pbvs_pin.sim.scenario import Scenario
+from pbvs_pin.sim.sensing import Sensing
 from pbvs_pin.sim.setup import Setup, build
 
 
@@ -84,7 +88,8 @@ def simulate(
     log_every = max(1, round(1.0 / (scenario.simulation.log_rate * control_dt)))
     laser_every = max(1, round(1.0 / (scenario.laser.rate * control_dt)))
     footprint = footprint_points(scenario.platform.length, scenario.platform.width)
-    recorder = RunRecorder(setup, footprint)
+    sensing = Sensing(setup)
+    recorder = RunRecorder(setup, footprint, sensing)
     perception = Perception(setup)
     laser_reading = (float("inf"), 0.0)
     laser_array = np.array(laser_reading)
@@ -94,6 +99,7 @@ def simulate(
             setup.model, setup.features, setup.xi_d, setup.controller, setup.compensator,
             setup.objectives,
         )  # fmt: skip
+    shared = fused is not None and shares_dynamics(setup)
     if progress:
         compile_notice()
     started = wallclock.perf_counter()
@@ -102,30 +108,32 @@ def simulate(
         for step in range(steps):
             t = step * control_dt
             plant = setup.plant
-            if setup.sensor.capture_due(t):
+            sensing.read(t)
+            q, v = sensing.q, sensing.v  # what the controller knows of the robot
+            if setup.sensor.capture_due(t):  # the true camera sees the true target
                 setup.sensor.capture(
-                    t, setup.robot.camera_pose(plant.q), setup.target.centres(t), plant.q
+                    t, setup.robot.camera_pose(plant.q), setup.target.centres(t), q
                 )
-            setup.sensor.stamp(t, plant.q)  # frames whose exposure delay has elapsed
+            setup.sensor.stamp(t, q)  # frames whose exposure delay has elapsed
             frame = setup.sensor.deliver(t)
             if frame is not None:
                 perception.take(frame)
             if setup.obstacles and step % laser_every == 0:
-                laser_reading = _laser(setup, plant.q)
+                laser_reading = sensing.laser_reading()
                 laser_array = np.array(laser_reading)
-            measurement = perception.current(t, plant.q)
+            measurement = perception.current(t, q)
             seen = measurement is not None
             if fused is not None and seen:
                 _, v_ref, v2 = fused.step(
-                    plant.q, plant.v, measurement, perception.velocity(t), laser_array, control_dt
+                    q, v, measurement, perception.velocity(t), laser_array, control_dt
                 )
             else:
                 if fused is not None:
                     fused.restart_derivative()  # the command derivative restarts after a loss
                 output, jacobians = _control_step(
-                    setup, perception, plant.q, laser_reading, t, control_dt
+                    setup, perception, q, laser_reading, t, control_dt
                 )
-                v_ref, v2 = setup.compensator.step(plant.q, plant.v, output.u, control_dt)
+                v_ref, v2 = setup.compensator.step(q, v, output.u, control_dt)
             if step % log_every == 0:
                 if fused is not None and seen:
                     output, jacobians = fused.output()
@@ -140,7 +148,10 @@ def simulate(
                 )
                 if observer is not None:
                     observer(_snapshot(setup, perception, t))  # fmt: skip
-            for _ in range(substeps):
+            terms = fused.terms_at(plant.q, plant.v) if shared and seen else None
+            if terms is not None:
+                plant.step(v_ref, terms)  # on the controller's Pinocchio terms: the same numbers
+            for _ in range(substeps - (terms is not None)):
                 plant.step(v_ref)
             if bar is not None:
                 bar.update(1)
@@ -152,6 +163,21 @@ def simulate(
     if bar is not None:
         bar.close()
     return recorder.finish(started)
+
+
+def shares_dynamics(setup: Setup) -> bool:
+    """Whether the plant may step on the controller's Pinocchio terms.
+
+    Only a Pinocchio plant whose model equals the controller's, value for value (no
+    ``model_error``), and with the same ``S``: then ``crba``, ``nonLinearEffects`` and the
+    gravity at the same ``(q, v)`` are the same numbers, computed once per control step.
+    """
+    plant = setup.plant
+    return (
+        isinstance(plant, Plant)
+        and setup.model.model == plant.robot.model
+        and np.array_equal(setup.model.selection, plant.robot.selection)
+    )
 
 
 def _snapshot(setup: Setup, perception: Perception, t: float) -> Snapshot:
@@ -176,15 +202,6 @@ def _progress(steps: int, enabled: bool, name: str):
     from tqdm import tqdm
 
     return tqdm(total=steps, desc=name, unit="step", leave=False, mininterval=0.5)
-
-
-def _laser(setup: Setup, q: np.ndarray) -> tuple[float, float]:
-    """``(d, alpha)`` from a scan taken at the laser frame (or the base)."""
-    frame = "laser_link" if setup.robot.model.existFrame("laser_link") else None
-    pose = setup.robot.frame_pose(q, frame) if frame else setup.robot.base_pose(q)
-    yaw = float(np.arctan2(pose.rotation[1, 0], pose.rotation[0, 0]))
-    ranges = setup.laser.scan(setup.obstacles, pose.translation[0], pose.translation[1], yaw)
-    return setup.laser.nearest(ranges)
 
 
 def _control_step(

@@ -48,7 +48,9 @@ def summarize(log: RunLog) -> dict[str, Any]:
         platform clearance, the arm's distance from the maximum-manipulability posture over
         the final window, the storage function's increase and decrease after the transient,
         the velocity-tracking error ``|v - u|`` (RMS of the Euclidean norm in SI units, and
-        per platform/arm part), and the flags of the module docstring.
+        per platform/arm part), the odometry drift at the end and the platform's slip
+        (:func:`pbvs_pin.sim.log.sensing_meta`; None for a log without them), and the flags
+        of the module docstring.
     """
     t = log["t"]
     error = log["xi_true"] - log["xi_d"]
@@ -62,6 +64,7 @@ def summarize(log: RunLog) -> dict[str, Any]:
     tracking = log["v"] - log["u"]
     n_base = len(log["v"][0]) - len(posture)
     limits = np.asarray(log.meta["velocity_limits"], dtype=float)
+    drift, slip = log.meta.get("odometry_drift", {}), log.meta.get("slip", {})
     return {
         "scenario": log.meta["scenario"],
         "robot": log.meta["robot"],
@@ -91,6 +94,10 @@ def summarize(log: RunLog) -> dict[str, Any]:
         "joint_limit_violation": joint_limit_violation(log),
         "oscillation_rms_px": oscillation,
         "oscillation_window_start_s": window_start,
+        "odometry_drift_m": drift.get("position"),
+        "odometry_drift_rad": drift.get("heading"),
+        "lateral_slip_rms_mps": slip.get("lateral_speed_rms"),
+        "yaw_rate_ratio": slip.get("yaw_rate_ratio"),
         "wall_time_s": float(log.meta["wall_time"]),
         "real_time_factor": float(t[-1] / max(log.meta["wall_time"], 1e-9)),
     }

@@ -130,30 +130,70 @@ class BoxObstacle(Obstacle):
 class Laser:
     """A planar laser rangefinder.
 
+    A scan's range ``d_i`` to the first hit becomes ``round((d_i + sigma n_i) / delta) delta``
+    with ``n_i`` standard normal (:meth:`scan` with a generator), clipped at 0; a range beyond
+    ``max_range`` (before the noise) is no return (``inf``).
+
     Attributes:
         field_of_view: Angular span, centred on the forward axis [rad].
         beams: Number of rays.
         max_range: Longest range reported [m].
+        range_noise: Standard deviation ``sigma`` of the range noise [m].
+        range_resolution: Resolution ``delta`` of the reported ranges [m] (0: exact).
     """
 
     field_of_view: float = np.pi
     beams: int = 181
     max_range: float = 8.0
+    range_noise: float = 0.0
+    range_resolution: float = 0.0
+
+    def __post_init__(self) -> None:
+        """Reject a negative noise or resolution."""
+        if not (self.range_noise >= 0 and self.range_resolution >= 0):
+            raise GainError(
+                f"Laser range noise/resolution: expected >= 0 m, got {self.range_noise}, "
+                f"{self.range_resolution}"
+            )
 
     def angles(self) -> np.ndarray:
         """Beam angles, counter-clockwise from forward [rad]. Shape (beams,)."""
         half = self.field_of_view / 2
         return np.linspace(-half, half, self.beams)
 
-    def scan(self, obstacles: list[Obstacle], x: float, y: float, yaw: float) -> np.ndarray:
-        """Ranges [m] from a laser at ``(x, y)`` facing ``yaw``; ``inf`` beyond range."""
+    def scan(
+        self,
+        obstacles: list[Obstacle],
+        x: float,
+        y: float,
+        yaw: float,
+        rng: np.random.Generator | None = None,
+    ) -> np.ndarray:
+        """Ranges [m] from a laser at ``(x, y)`` facing ``yaw``; ``inf`` beyond range.
+
+        Args:
+            obstacles: What the rays may hit.
+            x: Laser x in the world [m].
+            y: Laser y in the world [m].
+            yaw: Laser heading [rad].
+            rng: Generator of the range noise; None: exact ranges (no noise, no rounding).
+
+        Returns:
+            Shape (beams,) [m].
+        """
         angles = self.angles() + yaw
         directions = np.stack([np.cos(angles), np.sin(angles)], axis=1)
         origin = np.array([x, y])
         ranges = np.full(self.beams, np.inf)
         for obstacle in obstacles:
             ranges = np.minimum(ranges, obstacle.ray_distances(origin, directions))
-        return np.where(ranges <= self.max_range, ranges, np.inf)
+        hit = ranges <= self.max_range
+        if rng is not None:
+            ranges = ranges + self.range_noise * rng.standard_normal(self.beams)
+            if self.range_resolution > 0:
+                ranges = np.round(ranges / self.range_resolution) * self.range_resolution
+            ranges = np.maximum(ranges, 0.0)
+        return np.where(hit, ranges, np.inf)
 
     def nearest(self, ranges: np.ndarray) -> tuple[float, float]:
         """``(d, alpha)``: shortest range and its angle, clockwise-positive [m, rad]."""

@@ -37,6 +37,7 @@ from pbvs_pin.sim.sections import (
     PlatformSection,
     RobotSection,
     SecondarySection,
+    SensingSection,
     SimulationSection,
     TargetSection,
 )
@@ -58,7 +59,7 @@ class Scenario(Section):
         description: One line on what the run shows.
         duration: Simulated time [s].
         robot, model_error, plant, camera, target, motion, estimator, controller,
-            compensation, secondary, laser, platform, simulation: The tables, see
+            compensation, secondary, laser, platform, simulation, sensing: The tables, see
             :mod:`pbvs_pin.sim.sections`.
         obstacles: The ``[[obstacles]]`` tables as obstacles.
     """
@@ -81,6 +82,7 @@ class Scenario(Section):
     laser: LaserSection = field(default_factory=LaserSection)
     platform: PlatformSection = field(default_factory=PlatformSection)
     simulation: SimulationSection = field(default_factory=SimulationSection)
+    sensing: SensingSection = field(default_factory=SensingSection)
     obstacles: tuple[CircleObstacle | BoxObstacle, ...] = ()
 
     @classmethod

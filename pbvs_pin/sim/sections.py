@@ -192,7 +192,10 @@ class CameraSection(Section):
     width: int = key(628, "Image width [px].", sign=POSITIVE)
     height: int = key(582, "Image height [px].", sign=POSITIVE)
     rate: float = key(30.0, "Frame rate [Hz].", sign=POSITIVE)
-    latency: float = key(0.0, "Delay from capture to delivery [s].", sign=NON_NEGATIVE)
+    latency: float | None = key(
+        None, "Delay from capture to delivery [s]; one frame period (1 / rate) if absent.",
+        sign=NON_NEGATIVE, optional=float,
+    )  # fmt: skip
     noise_px: float = key(0.0, "Standard deviation of the pixel noise [px].", sign=NON_NEGATIVE)
     drop_probability: float = key(0.0, "Chance a frame is lost, in [0, 1).", sign=NON_NEGATIVE)
     occlusion_starts: tuple[float, ...] = key((), "Occlusion starts [s].", sign=NON_NEGATIVE)
@@ -200,6 +203,16 @@ class CameraSection(Section):
     occlusion_duration: float = key(0.0, "Length of an occlusion [s].", sign=NON_NEGATIVE)
     latency_jitter: float = key(0.0, "Largest extra (uniform) latency [s].", sign=NON_NEGATIVE)
     exposure_delay: float = key(0.0, "Exposure to timestamp delay [s].", sign=NON_NEGATIVE)
+
+    @property
+    def delivery_latency(self) -> float:
+        """The latency [s]: ``latency``, or one frame period ``1 / rate`` when not given.
+
+        A camera's frame reaches the controller at the earliest one frame period after its
+        exposure starts (the sensor is read out while the next frame is exposed), so a
+        delivery without delay is the idealisation and one frame the realistic default.
+        """
+        return 1.0 / self.rate if self.latency is None else self.latency
 
     def intrinsics(self) -> CameraIntrinsics:
         """The pinhole intrinsics."""
@@ -335,7 +348,9 @@ class ControllerSection(Section):
     loop_gain_margin: float = key(
         LOOP_GAIN_MARGIN,
         "Largest feedback gain per camera sample, k T lambda_max(J J^T) in controller units; "
-        "above it the feature gains are scaled down and the log's gain_limited is set [1].",
+        "above it the feature gains are scaled down and the log's gain_limited is set; scaled "
+        "by sin(pi / (2 (2 d + 1))) for a latency of d camera periods not predicted "
+        "(pbvs_pin.control.upright) [1].",
         sign=POSITIVE,
     )
 
@@ -406,6 +421,14 @@ class LaserSection(Section):
     beams: int = key(181, "Rays per scan.", sign=POSITIVE)
     field_of_view: float = key(3.14159, "Angle covered by the rays [rad].", sign=POSITIVE)
     max_range: float = key(8.0, "Longest measured distance [m].", sign=POSITIVE)
+    range_noise: float = key(
+        0.01, "Standard deviation of the Gaussian range noise [m] (a SICK/Hokuyo-class "
+        "scanner: 1-3 cm).", sign=NON_NEGATIVE,
+    )  # fmt: skip
+    range_resolution: float = key(
+        0.001, "Range resolution [m]: ranges are reported in multiples of it (0: exact).",
+        sign=NON_NEGATIVE,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -424,12 +447,88 @@ class SimulationSection(Section):
     TABLE: ClassVar[str] = "simulation"
     plant_dt: float = key(0.001, "Integration step of the plant [s].", sign=POSITIVE)
     log_rate: float = key(50.0, "Samples per second in the log [Hz].", sign=POSITIVE)
-    seed: int = key(0, "Seed of the camera's pixel-noise generator.", sign=NON_NEGATIVE)
+    seed: int = key(
+        0, "Seed of every noise generator (camera, camera faults, encoders, laser; each draws "
+        "from its own stream).", sign=NON_NEGATIVE,
+    )  # fmt: skip
+
+
+MAX_ENCODER_BITS = 40
+"""Most bits an arm encoder may have (2^40 counts a turn is far below float resolution)."""
+
+
+@dataclass(frozen=True)
+class SensingSection(Section):
+    """``[sensing]``: what the controller reads of the robot (:mod:`pbvs_pin.sim.sensing`).
+
+    The platform pose from wheel odometry with the heading from a yaw-rate gyro, the arm's
+    positions from absolute encoders, every velocity from encoder differences over the control
+    period with noise and a first-order filter. The defaults are a Pioneer-class platform (a
+    500-line quadrature encoder on each motor, 20:1 gearbox, a MEMS yaw-rate gyro) with 17-bit
+    absolute arm encoders.
+    """
+
+    TABLE: ClassVar[str] = "sensing"
+    exact: bool = key(
+        False, "The controller reads the plant's true configuration and velocity (no "
+        "encoders, no odometry: an idealisation) [bool].",
+    )  # fmt: skip
+    localisation: str = key(
+        "odometry",
+        "Platform pose: odometry (integrated wheel-encoder counts, which drift when the wheels "
+        "slip) or perfect (the true pose, as from an external tracker).",
+        choices=("odometry", "perfect"),
+    )
+    heading: str = key(
+        "gyro",
+        "Odometry heading and yaw rate: gyro (integrated from the platform's yaw-rate gyro, "
+        "gyro-corrected odometry) or wheels (from the wheel counts alone, which over-count "
+        "the turns of a skid-steer platform whose wheels slip).",
+        choices=("gyro", "wheels"),
+    )
+    gyro_noise: float = key(
+        0.005, "Standard deviation of the Gaussian noise on each gyro reading [rad/s] (a "
+        "MEMS gyro, 0.01 deg/s/sqrt(Hz) read at 1 kHz).", sign=NON_NEGATIVE,
+    )  # fmt: skip
+    gyro_bias: float = key(
+        0.001, "Constant bias of the gyro [rad/s] (0.06 deg/s left after calibration).",
+    )  # fmt: skip
+    wheel_encoder_counts: int = key(
+        40_000, "Encoder counts per wheel revolution (500 lines x 4 edges x 20:1 gearbox).",
+        sign=POSITIVE,
+    )  # fmt: skip
+    arm_encoder_bits: int = key(
+        17, "Bits of each revolute arm joint's absolute encoder: 2^bits counts a turn.",
+        sign=POSITIVE,
+    )  # fmt: skip
+    arm_linear_resolution: float = key(
+        1e-6, "Resolution of each prismatic arm joint's encoder [m].", sign=POSITIVE
+    )
+    joint_velocity_noise: float = key(
+        0.005, "Standard deviation of the Gaussian noise on each arm joint's velocity reading "
+        "[rad/s or m/s] (about one 17-bit count per 10 ms).", sign=NON_NEGATIVE,
+    )  # fmt: skip
+    wheel_velocity_noise: float = key(
+        0.02, "Standard deviation of the Gaussian noise on each wheel's velocity reading "
+        "[rad/s] (about one count per 10 ms).", sign=NON_NEGATIVE,
+    )  # fmt: skip
+    velocity_filter: float = key(
+        0.02, "Time constant of the first-order low-pass on every velocity reading [s] (0: "
+        "none), as a drive reports filtered velocities.", sign=NON_NEGATIVE,
+    )  # fmt: skip
+
+    def validate(self) -> None:
+        """At most :data:`MAX_ENCODER_BITS` arm encoder bits (GainError naming the key)."""
+        if self.arm_encoder_bits > MAX_ENCODER_BITS:
+            raise GainError(
+                f"expected at most {MAX_ENCODER_BITS}, got {self.arm_encoder_bits}",
+                "arm_encoder_bits",
+            )
 
 
 SECTIONS: tuple[type[Section], ...] = (
     RobotSection, ModelErrorSection, PlantSection, CameraSection, TargetSection, MotionSection,
     EstimatorSection, ControllerSection, CompensationSection, SecondarySection, LaserSection,
-    PlatformSection, SimulationSection,
+    PlatformSection, SimulationSection, SensingSection,
 )  # fmt: skip
 """Every table of a scenario file, in the order of the key reference."""

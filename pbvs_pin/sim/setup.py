@@ -24,6 +24,7 @@ from pbvs_pin.control.secondary import (
     ObstacleAvoidance,
     SecondaryObjective,
 )
+from pbvs_pin.control.upright import delayed_margin
 from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.features import TwoSphereFeatures
 from pbvs_pin.manipulability import max_manipulability_posture
@@ -150,8 +151,9 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
         spec.occlusion_duration, spec.latency_jitter, spec.exposure_delay,
     )  # fmt: skip
     fault_rng = np.random.default_rng([scenario.simulation.seed, FAULT_STREAM])
+    latency = spec.delivery_latency
     sensor = CameraSensor(
-        camera, target.diameter, spec.rate, spec.latency, spec.noise_px, rng, faults, fault_rng
+        camera, target.diameter, spec.rate, latency, spec.noise_px, rng, faults, fault_rng
     )
     controller = _controller(scenario, model)
     comp = scenario.compensation
@@ -165,7 +167,10 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
     posture_target = _posture_target(scenario, model)
     objectives = _objectives(scenario, model, posture_target)
     laser_spec = scenario.laser
-    laser = Laser(laser_spec.field_of_view, int(laser_spec.beams), laser_spec.max_range)
+    laser = Laser(
+        laser_spec.field_of_view, int(laser_spec.beams), laser_spec.max_range,
+        laser_spec.range_noise, laser_spec.range_resolution,
+    )  # fmt: skip
     return Setup(
         scenario, robot, model, plant, target, features, sensor, controller, compensator,
         objectives, list(scenario.obstacles), laser, posture_target,
@@ -226,6 +231,11 @@ def _controller(scenario: Scenario, model: MobileManipulator) -> PassivityContro
     """The kinematic controller, its gains fitted to the model's dof."""
     spec = scenario.controller
     n = model.n
+    camera = scenario.camera
+    # the loop-gain net's sample: a camera frame, or a control step if that is longer; its
+    # margin shrinks with the frames' latency unless each frame is predicted up to now
+    period = max(1.0 / camera.rate, 1.0 / spec.rate)
+    delay = 0.0 if scenario.estimator.predict else camera.delivery_latency / period
     gains = ServoGains(
         k=tuple(_vector(scenario, "controller.k", spec.k, 3)),
         k1=tuple(_vector(scenario, "controller.k1", _per_dof(spec.k1, model), n)),
@@ -235,9 +245,8 @@ def _controller(scenario: Scenario, model: MobileManipulator) -> PassivityContro
         use_pseudoinverse_feedback=spec.feedback == "pseudoinverse",
         upright=spec.upright,
         upright_rate=spec.upright_rate,
-        # the loop-gain net's sample: a camera frame, or a control step if that is longer
-        camera_period=max(1.0 / scenario.camera.rate, 1.0 / spec.rate),
-        loop_gain_margin=spec.loop_gain_margin,
+        camera_period=period,
+        loop_gain_margin=delayed_margin(spec.loop_gain_margin, delay),
     )
     if spec.law == "ibvs":
         return ClassicIbvs(spec.ibvs_gain, model.velocity_limits, gains)

@@ -118,6 +118,7 @@ class CameraSensor:
         self.occluded_until = -np.inf
         self.exposed: list[tuple[float, Frame]] = []  # (exposure time, frame before its stamp)
         self.pending: list[tuple[float, Frame]] = []  # (delivery time, frame)
+        self.next_arrival = np.inf  # the earliest delivery time in ``pending``
 
     def capture_due(self, t: float) -> bool:
         """Whether a frame is to be captured at time ``t``."""
@@ -176,12 +177,14 @@ class CameraSensor:
                 delay += self.faults.latency_jitter * self.fault_rng.random()
             stamped = Frame(t, frame.points, frame.diameters, q.copy(), frame.visible)
             self.pending.append((t + delay, stamped))
+            self.next_arrival = min(self.next_arrival, t + delay)
 
     def deliver(self, t: float) -> Frame | None:
         """The newest frame due by ``t``; it and every older pending frame leave the queue."""
-        due = [frame for arrival, frame in self.pending if arrival <= t + 1e-9]
-        if not due:
+        if self.next_arrival > t + 1e-9:  # nothing due: the 1 kHz loop's usual case
             return None
+        due = [frame for arrival, frame in self.pending if arrival <= t + 1e-9]
         latest = max(due, key=lambda frame: frame.time)
         self.pending = [(a, f) for a, f in self.pending if f.time > latest.time]
+        self.next_arrival = min((a for a, _ in self.pending), default=np.inf)
         return latest
