@@ -15,6 +15,7 @@ it against fresh runs.
 from __future__ import annotations
 
 import json
+import math
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -227,8 +228,9 @@ def engine_row(s: dict[str, Any]) -> str:
         f"| {s['robot']} | {s['scenario']} | {s['engine']} | "
         f"{'-' if met is None else ('met' if met else 'NOT met')} | "
         f"{s['max_abs_error_final_window_px']:.2f} | {s['rms_error_after_transient_px']:.2f} | "
-        f"{s['odometry_drift_m']:.4f} | {s['odometry_heading_drift_deg']:.2f} | "
-        f"{s['lateral_slip_rms_mps']:.4f} | {s['yaw_rate_ratio']:.2f} | "
+        f"{s['odometry_drift_m']:.3f} | {math.degrees(s['odometry_drift_rad']):.2f} | "
+        f"{s['lateral_slip_rms_mps']:.4f} | "
+        f"{'-' if s['yaw_rate_ratio'] is None else format(s['yaw_rate_ratio'], '.2f')} | "
         f"{s['real_time_factor']:.0f}x | {'; '.join(flags(s)) or 'none'} |"
     )
 
