@@ -11,7 +11,14 @@ from __future__ import annotations
 import pytest
 
 from pbvs_pin.experiments import PAPER_CLAIMS
-from pbvs_pin.report import ENGINE_ROBOTS, engines_table
+from pbvs_pin.report import (
+    ENGINE_ROBOTS,
+    ENGINES_BEGIN,
+    ENGINES_END,
+    engines_table,
+    readme_block,
+    readme_engines,
+)
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario
@@ -56,3 +63,14 @@ def test_the_report_shows_odometry_drift_and_slip_on_mujoco(summaries):
     pioneer = [s for (robot, _), s in summaries.items() if robot.startswith("pioneer")]
     assert max(s["lateral_slip_rms_mps"] for s in pioneer) > 1e-4
     assert all(s["odometry_drift_m"] >= 0 for s in summaries.values())
+
+
+def test_readme_mujoco_results_match_fresh_runs(summaries):
+    """The README's MuJoCo table is the one generated from these fresh runs' summaries."""
+    from conftest import REPO_ROOT
+
+    readme = readme_block((REPO_ROOT / "README.md").read_text(), ENGINES_BEGIN, ENGINES_END)
+    assert readme == readme_engines(list(summaries.values())), (
+        "README MuJoCo results differ from fresh runs: regenerate with pbvs-pin reproduce "
+        "--out results && python -m pbvs_pin.report README.md results"
+    )
