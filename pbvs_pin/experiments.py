@@ -242,7 +242,9 @@ def _engines_section(plants: list[dict[str, Any]]) -> str:
             "controller, its model and its sensors are the same. Odometry drift: distance and "
             "heading between the wheel-odometry pose and the true pose at the end; lateral "
             "slip: RMS of the platform's sideways speed; yaw rate / wheels': the platform's "
-            "true turn rate over the one its wheel speeds imply (1 without slip).",
+            "true turn rate over the one its wheel speeds imply (1 without slip). The "
+            "real-time factor of a run includes compiling the kernels when they were not "
+            "compiled yet (the first run).",
             "",
             engines_table(plants),
             "",
