@@ -64,7 +64,7 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float]:
     perception = Perception(setup)
     q = setup.plant.q
     setup.sensor.capture(0.0, setup.robot.camera_pose(q), setup.target.centres(0.0), q)
-    perception.take(setup.sensor.deliver(0.0))
+    perception.take(setup.sensor.deliver(1.0))  # after the frame latency
     v = np.full(setup.robot.n, 0.05)
     dt = 1e-3
     fused = FusedControlStep(

@@ -12,7 +12,13 @@ import pytest
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.obstacles import BoxObstacle, Laser
 from pbvs_pin.sim.scenario import load_scenario
-from pbvs_pin.sim.sensing import Sensing, planar_pose
+from pbvs_pin.sim.sensing import (
+    ENCODER_STREAM,
+    GYRO_STREAM,
+    NOISE_BLOCK,
+    Sensing,
+    planar_pose,
+)
 from pbvs_pin.sim.setup import build
 
 CONTROL_DT = 0.01
@@ -157,6 +163,30 @@ def test_encoder_velocity_noise_has_the_standard_deviation_set(tau):
     # u = r (w_l + w_r) / 2 of two independent wheel readings
     u_std = drive.wheel_radius * sigma_wheel * shrink / np.sqrt(2)
     assert np.std(readings[:, 0]) == pytest.approx(u_std, rel=0.05)
+
+
+def test_noise_follows_its_streams_draw_by_draw_across_blocks():
+    """Drawn in blocks, the noise is still each stream's draws in order, one set per reading:
+    at rest without a filter, an arm reading is ``sigma`` times the encoder stream's draw, the
+    platform's ``u`` that of the two wheels' draws, and its yaw rate the gyro's bias plus
+    ``sigma`` times the gyro stream's draw."""
+    sigma_arm, sigma_wheel = 0.05, 0.2
+    values = {"sensing.velocity_filter": 0.0, "sensing.joint_velocity_noise": sigma_arm,
+              "sensing.wheel_velocity_noise": sigma_wheel}  # fmt: skip
+    steps = NOISE_BLOCK + 50
+    setup, _, rows = _drive("pinocchio", lambda t: np.zeros(5), steps * CONTROL_DT, **values)
+    spec, n_arm = setup.scenario.sensing, setup.model.n_arm
+    seed = setup.scenario.simulation.seed
+    encoders = np.random.default_rng([seed, ENCODER_STREAM]).standard_normal((steps - 1, n_arm + 2))
+    gyro = np.random.default_rng([seed, GYRO_STREAM]).standard_normal(steps - 1)
+    readings = rows["v_measured"][1:]
+    np.testing.assert_allclose(readings[:, 2:], sigma_arm * encoders[:, :n_arm], rtol=1e-12)
+    radius = setup.model.base.wheel_radius
+    u = 0.5 * radius * sigma_wheel * (encoders[:, n_arm] + encoders[:, n_arm + 1])
+    np.testing.assert_allclose(readings[:, 0], u, rtol=1e-12)
+    np.testing.assert_allclose(
+        readings[:, 1], spec.gyro_bias + spec.gyro_noise * gyro, rtol=1e-9, atol=1e-12
+    )
 
 
 def _short(**values):
