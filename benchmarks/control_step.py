@@ -12,8 +12,9 @@ with a 1 kHz controller on the reference robot, its cost per simulated second ag
 number of arm joints (a Panda on the reference platform with the camera on its link 3 ... 7:
 3 ... 7 arm joints), and where the loop's time goes on the reference robot: the Pinocchio
 calls per simulated millisecond that no speed-up removes (the floor), the rest of the control
-step and of the plant step, and everything else in the loop. Medians over repeats: the machine
-is shared.
+step and of the plant step, the sensors' reading (:class:`~pbvs_pin.sim.sensing.Sensing`),
+the prediction of the newest frame to now (:class:`~pbvs_pin.sim.perception.Perception`), and
+everything else in the loop. Medians over repeats: the machine is shared.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from pbvs_pin.plant import Plant
 from pbvs_pin.sim.loop import shares_dynamics, simulate
 from pbvs_pin.sim.perception import Perception
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.sim.sensing import Sensing
 from pbvs_pin.sim.setup import build
 
 REPEATS = 15
@@ -145,6 +147,34 @@ def plant_step_times(robot_name: str) -> tuple[float, float, float]:
     return step_time, calls, integrate
 
 
+def sensing_and_prediction_times() -> tuple[float, float]:
+    """Median time of one sensor reading and of one prediction to now [s], reference robot.
+
+    The reading (:meth:`Sensing.read`: encoders, velocity filter, odometry, gyro) on a moving
+    plant; the prediction (:meth:`Perception.current`) of a frame one period old.
+    """
+    setup = build(load_scenario("experiment1"))
+    sensing, plant = Sensing(setup), setup.plant
+    v_ref = np.full(setup.robot.n, 0.1)
+    for _ in range(20):
+        plant.step(v_ref)
+    clock = iter(np.arange(1, 10**7) * 1e-3)
+    sensing.read(0.0)
+    reading = statistics.median(
+        _mean_time(lambda: sensing.read(next(clock))) for _ in range(REPEATS)
+    )
+    perception = Perception(setup)
+    q = plant.q
+    setup.sensor.capture(0.0, setup.robot.camera_pose(q), setup.target.centres(0.0), q)
+    perception.take(setup.sensor.deliver(1.0))  # after the frame latency
+    t = perception.frame.time + setup.sensor.period
+    prediction = statistics.median(
+        _mean_time(lambda: perception.current(t, q)) for _ in range(REPEATS)
+    )
+    assert perception.predicting
+    return reading, prediction
+
+
 def main() -> None:
     """Print the measurements."""
     print(f"{'robot':<16}{'n':>3}{'control step [us]':>20}{'pinocchio calls [us]':>23}{'ratio':>8}")
@@ -163,9 +193,12 @@ def main() -> None:
         n = build(load_scenario("experiment1").with_values(**values)).robot.n
         dof_factor, valid = closed_loop_real_time_factor(5.0, **values)
         print(f"{joints:>10}{n:>4}{1e3 / dof_factor:>17.1f}{dof_factor:>10.1f}x{valid:>7.2f}")
-    shared = shares_dynamics(build(load_scenario("experiment1")))
+    reference = load_scenario("experiment1")
+    # the plant reuses the controller's terms only when it is given the plant's own state
+    shared = shares_dynamics(build(reference)) and reference.sensing.exact
     plant_step, plant_calls, integrate = plant_step_times("pioneer_cyton")
     control_step, control_calls = steps["pioneer_cyton"]
+    reading, prediction = sensing_and_prediction_times()
     plant_floor = integrate if shared else plant_calls
     loop = 1e-3 / factor
     print("\nwhere a simulated millisecond goes, pioneer_cyton (one control and plant step) [us]:")
@@ -177,9 +210,11 @@ def main() -> None:
             plant_floor,
         ),
         ("plant step: the rest (glue, compiled servo kernel)", plant_step - plant_calls),
+        ("sensing: encoders, velocity filter, odometry, gyro", reading),
+        ("perception: the newest frame predicted to now", prediction),
         (
-            "loop: the rest (camera, perception, log, Python, cache misses)",
-            loop - control_step - plant_step + (plant_calls - plant_floor),
+            "loop: the rest (camera, log, Python, cache misses)",
+            loop - control_step - plant_step - reading - prediction + (plant_calls - plant_floor),
         ),
         ("total (the closed loop above)", loop),
         ("floor: the Pinocchio calls alone", control_calls + plant_floor),

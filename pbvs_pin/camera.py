@@ -90,11 +90,7 @@ class CameraIntrinsics:
         in_camera = (np.asarray(points_world, dtype=float) - camera_pose.translation) @ (
             camera_pose.rotation
         )
-        depths = in_camera[:, 2].copy()
-        divisor = np.maximum(depths, min_depth) if min_depth > 0 else depths
-        with np.errstate(divide="ignore", invalid="ignore"):
-            image = -self.focal_px * in_camera[:, :2] / divisor[:, None]
-        return image, depths
+        return perspective(in_camera, self.focal_px, min_depth)
 
     def project_jacobian(self, point_in_camera: npt.ArrayLike) -> np.ndarray:
         r"""Derivative of :meth:`project` with respect to the point.
@@ -247,3 +243,29 @@ def point_interaction_matrix(focal_px: float, xi: npt.ArrayLike, depth: float) -
     """
     points = np.asarray(xi, dtype=float).reshape(1, 2)
     return point_jacobians(points, np.array([float(depth)]), float(focal_px))[0]
+
+
+@njit(cache=True, error_model="numpy")
+def perspective(
+    in_camera: np.ndarray, focal: float, min_depth: float
+) -> tuple[np.ndarray, np.ndarray]:
+    r"""Eq. (2), ``xi = -f [x, y] / z``, for points in the optical frame; no depth check.
+
+    Args:
+        in_camera: Points ``[x, y, z]`` in the optical frame [m]. Shape (k, 3).
+        focal: Focal length ``f`` [px].
+        min_depth: Smallest depth used as divisor [m] (0: none); a NaN depth stays NaN.
+
+    Returns:
+        Image points ``[u, v]`` [px], shape (k, 2) (infinite or NaN at a zero depth), and
+        depths [m], shape (k,).
+    """
+    k = in_camera.shape[0]
+    image, depths = np.empty((k, 2)), np.empty(k)
+    for i in range(k):
+        z = in_camera[i, 2]
+        depths[i] = z
+        divisor = z if min_depth <= 0 or not z < min_depth else min_depth
+        image[i, 0] = -focal * in_camera[i, 0] / divisor
+        image[i, 1] = -focal * in_camera[i, 1] / divisor
+    return image, depths
