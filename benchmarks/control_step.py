@@ -5,16 +5,18 @@ The control step timed is the one the simulation loop runs: :class:`FusedControl
 
 Run: ``python benchmarks/control_step.py``. Prints, per robot, the median time of one full
 control step (kinematic controller, eq. 34, plus dynamic compensation, eq. 20) and of the
-Pinocchio calls that step makes (joint Jacobians, camera frame placement and Jacobian,
-CRBA, nonlinear effects, gravity), both
-measured in this run, and their ratio; then the real-time factor of a closed-loop simulation
-with a 1 kHz controller on the reference robot, its cost per simulated second against the
-number of arm joints (a Panda on the reference platform with the camera on its link 3 ... 7:
-3 ... 7 arm joints), and where the loop's time goes on the reference robot: the Pinocchio
-calls per simulated millisecond that no speed-up removes (the floor), the rest of the control
-step and of the plant step, the sensors' reading (:class:`~pbvs_pin.sim.sensing.Sensing`),
-the prediction of the newest frame to now (:class:`~pbvs_pin.sim.perception.Perception`), and
-everything else in the loop. Medians over repeats: the machine is shared.
+Pinocchio calls that step makes (joint Jacobians, camera frame placement and Jacobian, CRBA,
+nonlinear effects, gravity), both measured in this run, and their ratio; where the step's time
+goes (Pinocchio, Python glue, passing the 15 arguments to compiled code, the compiled
+arithmetic) and the ratio it would have with no arithmetic at all (its floor); then the
+real-time factor of a closed-loop simulation with a 1 kHz controller on the reference robot, its
+cost per simulated second against the number of arm joints (a Panda on the reference platform
+with the camera on its link 3 ... 7: 3 ... 7 arm joints), and where the loop's time goes on the
+reference robot: the Pinocchio calls per simulated millisecond that no speed-up removes (the
+floor), the rest of the control step and of the plant step, the sensors' reading
+(:class:`~pbvs_pin.sim.sensing.Sensing`), the prediction of the newest frame to now
+(:class:`~pbvs_pin.sim.perception.Perception`), and everything else in the loop. Medians over
+repeats: the machine is shared.
 """
 
 from __future__ import annotations
@@ -24,8 +26,9 @@ import time
 
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
-from pbvs_pin.control.step import FusedControlStep
+from pbvs_pin.control.step import FusedControlStep, fused_control_step
 from pbvs_pin.plant import Plant
 from pbvs_pin.sim.loop import shares_dynamics, simulate
 from pbvs_pin.sim.perception import Perception
@@ -45,28 +48,38 @@ def _mean_time(function, calls: int = CALLS) -> float:
     return (time.perf_counter() - start) / calls
 
 
-def _interleaved(first, second, repeats: int = REPEATS) -> tuple[float, float, float]:
-    """Medians of both functions' times and of their ratio, timed alternately.
+def _interleaved(*functions, repeats: int = REPEATS) -> tuple[float, ...]:
+    """Medians of the functions' times, and of the first's over the second's, timed alternately.
 
-    Alternating keeps both under the same load of this shared machine.
+    Alternating keeps all under the same load of this shared machine.
     """
-    first(), second()
-    pairs = [(_mean_time(first), _mean_time(second)) for _ in range(repeats)]
-    return (
-        statistics.median(a for a, _ in pairs),
-        statistics.median(b for _, b in pairs),
-        statistics.median(a / b for a, b in pairs),
-    )
+    for function in functions:
+        function()
+    rows = [[_mean_time(function) for function in functions] for _ in range(repeats)]
+    medians = [statistics.median(row[i] for row in rows) for i in range(len(functions))]
+    return (*medians, statistics.median(row[0] / row[1] for row in rows))
 
 
-def control_step_ratio(robot_name: str) -> tuple[float, float, float]:
-    """Median control-step time, median time of its Pinocchio calls [s], median ratio."""
+@njit
+def _no_op(a, b, c, d, e, f, g, h, i, j, k, dt, params, indices, state) -> None:
+    """A compiled call that does nothing with the fused step's 15 arguments."""
+
+
+def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, float]:
+    """Median times [s] of the control step and its parts, and its ratio to its Pinocchio calls.
+
+    Returns the step, its Pinocchio calls, their median ratio, the compiled call alone and a
+    compiled call that does nothing with the same arguments. The difference step - Pinocchio
+    calls - compiled call is the Python glue; compiled call - no-op is the compiled arithmetic;
+    the no-op is the price of calling compiled code with the step's 15 arguments.
+    """
     scenario = load_scenario("experiment1").with_values(**{"robot.name": robot_name})
     setup = build(scenario)
     perception = Perception(setup)
     q = setup.plant.q
     setup.sensor.capture(0.0, setup.robot.camera_pose(q), setup.target.centres(0.0), q)
     perception.take(setup.sensor.deliver(1.0))  # after the frame latency
+    measurement = perception.measurement
     v = np.full(setup.robot.n, 0.05)
     dt = 1e-3
     fused = FusedControlStep(
@@ -76,7 +89,7 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float]:
     laser, target_velocity = np.array([np.inf, 0.0]), np.zeros(3)
 
     def step() -> None:
-        fused.step(q, v, perception.measurement, target_velocity, laser, dt)
+        fused.step(q, v, measurement, target_velocity, laser, dt)
 
     model, data = setup.model.model, setup.model.data
     frame = setup.model.camera_frame_id
@@ -90,7 +103,24 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float]:
         pin.nonLinearEffects(model, data, q, v_pin)
         pin.computeGeneralizedGravity(model, data, q)
 
-    return _interleaved(step, pinocchio_calls)
+    step()
+    arguments = (
+        pin.getFrameJacobian(model, data, frame, pin.LOCAL).copy(),
+        data.oMf[frame].rotation.copy(), data.M.copy(), data.nle.copy(), data.g.copy(), q, v,
+        measurement.points, measurement.depths, target_velocity, laser, dt, fused.params,
+        fused.indices, fused.state,
+    )  # fmt: skip
+
+    def compiled() -> None:
+        fused_control_step(*arguments)
+
+    def no_op() -> None:
+        _no_op(*arguments)
+
+    step_time, calls, compiled_time, no_op_time, ratio = _interleaved(
+        step, pinocchio_calls, compiled, no_op
+    )
+    return step_time, calls, ratio, compiled_time, no_op_time
 
 
 def closed_loop_real_time_factor(
@@ -180,10 +210,18 @@ def main() -> None:
     print(f"{'robot':<16}{'n':>3}{'control step [us]':>20}{'pinocchio calls [us]':>23}{'ratio':>8}")
     steps = {}
     for name in ("pioneer_cyton", "pioneer_xarm7"):
-        step, calls, ratio = control_step_ratio(name)
-        steps[name] = (step, calls)
+        step, calls, ratio, compiled, no_op = control_step_ratio(name)
+        steps[name] = (step, calls, compiled, no_op)
         n = build(load_scenario("experiment1").with_values(**{"robot.name": name})).robot.n
         print(f"{name:<16}{n:>3}{step * 1e6:>20.1f}{calls * 1e6:>23.1f}{ratio:>8.2f}")
+    print("\nwhere the control step goes [us], and its ratio with no arithmetic at all:")
+    print(f"{'robot':<16}{'pinocchio':>10}{'python glue':>13}{'arguments':>11}"
+          f"{'arithmetic':>12}{'floor ratio':>13}")  # fmt: skip
+    for name, (step, calls, compiled, no_op) in steps.items():
+        glue = step - calls - compiled
+        floor = (calls + glue + no_op) / calls
+        print(f"{name:<16}{calls * 1e6:>10.2f}{glue * 1e6:>13.2f}{no_op * 1e6:>11.2f}"
+              f"{(compiled - no_op) * 1e6:>12.2f}{floor:>12.2f}x")  # fmt: skip
     factor, _ = closed_loop_real_time_factor()
     print(f"closed loop, 1 kHz controller, pioneer_cyton: {factor:.1f}x real time")
     print("\ncost per simulated second against the arm's joints (Panda, camera on link 3 ... 7):")
@@ -197,7 +235,7 @@ def main() -> None:
     # the plant reuses the controller's terms only when it is given the plant's own state
     shared = shares_dynamics(build(reference)) and reference.sensing.exact
     plant_step, plant_calls, integrate = plant_step_times("pioneer_cyton")
-    control_step, control_calls = steps["pioneer_cyton"]
+    control_step, control_calls, _, _ = steps["pioneer_cyton"]
     reading, prediction = sensing_and_prediction_times()
     plant_floor = integrate if shared else plant_calls
     loop = 1e-3 / factor

@@ -9,8 +9,10 @@ from pbvs_pin.sim.perception import Perception
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.setup import build
 
-NO_LATENCY = {"camera.latency": 0.0}
-"""A frame captured at 0 s is delivered at 0 s (the default latency is one frame)."""
+NO_LATENCY = {"camera.latency": 0.0, "estimator.predict": False}
+"""A frame captured at 0 s is delivered at 0 s (the default latency is one frame), and the
+controller servoes on it as measured (the shipped experiments predict it to the step's ``q``,
+which the modular step would do and the fused step, given the measurement, would not)."""
 
 
 def test_loop_jacobians_match_the_feature_set_at_the_current_configuration():
@@ -99,7 +101,7 @@ def test_terms_are_given_only_for_the_very_arrays_the_step_ran_on():
     """A measured copy of q (a sensing layer's) never gets the controller's terms."""
     from pbvs_pin.control.step import FusedControlStep
 
-    setup = build(load_scenario("experiment1"))
+    setup = build(load_scenario("experiment1").with_values(**NO_LATENCY))
     perception = Perception(setup)
     q, v = setup.plant.q, setup.plant.v
     setup.sensor.capture(0.0, setup.robot.camera_pose(q), setup.target.centres(0.0), q)

@@ -111,7 +111,8 @@ def damped_pseudo_inverse(
         mu2 = floor - min(smallest, 0.0)
     if mu2 > 0.0:
         gram = gram + mu2 * np.eye(gram.shape[0])
-    return cholesky_solve(gram, right.T.copy()).T.copy(), sigma_min, damped
+    cholesky_solve(gram, right.T)  # right becomes J# in place
+    return right, sigma_min, damped
 
 
 @njit(cache=True)
@@ -179,7 +180,11 @@ def passivity_law(
     if safety.camera_period > 0.0:  # loop-gain safety net
         largest = 1.0
         if not pseudoinverse_feedback:
-            largest = -smallest_eigenvalue(-matmul(jacobian, jacobian.T))
+            negated = matmul(jacobian, jacobian.T)
+            for a in range(r):
+                for b in range(r):
+                    negated[a, b] = -negated[a, b]
+            largest = -smallest_eigenvalue(negated)
         gain_factor, loop_gain = loop_gain_factor(
             largest, np.max(k), safety.camera_period, safety.loop_gain_margin
         )
