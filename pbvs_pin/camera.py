@@ -87,10 +87,10 @@ class CameraIntrinsics:
         Returns:
             Image points ``[u, v]`` [px], shape (k, 2), and depths [m], shape (k,).
         """
-        in_camera = (np.asarray(points_world, dtype=float) - camera_pose.translation) @ (
-            camera_pose.rotation
-        )
-        return perspective(in_camera, self.focal_px, min_depth)
+        return project_points(
+            np.asarray(points_world, dtype=float), camera_pose.translation,
+            camera_pose.rotation, self.focal_px, min_depth,
+        )  # fmt: skip
 
     def project_jacobian(self, point_in_camera: npt.ArrayLike) -> np.ndarray:
         r"""Derivative of :meth:`project` with respect to the point.
@@ -246,13 +246,23 @@ def point_interaction_matrix(focal_px: float, xi: npt.ArrayLike, depth: float) -
 
 
 @njit(cache=True, error_model="numpy")
-def perspective(
-    in_camera: np.ndarray, focal: float, min_depth: float
+def project_points(
+    points_world: np.ndarray,
+    translation: np.ndarray,
+    rotation: np.ndarray,
+    focal: float,
+    min_depth: float,
 ) -> tuple[np.ndarray, np.ndarray]:
-    r"""Eq. (2), ``xi = -f [x, y] / z``, for points in the optical frame; no depth check.
+    r"""Eq. (2) for world points seen from ``world_T_camera`` (:meth:`project_world`).
+
+    .. math:: p_c = {}^c R_w (p_w - {}^w t_c),\qquad \xi = -\frac{f}{z} [x, y]
+
+    The rotation is applied by ``np.dot`` (BLAS, as NumPy's ``@``: the same numbers).
 
     Args:
-        in_camera: Points ``[x, y, z]`` in the optical frame [m]. Shape (k, 3).
+        points_world: Points in the world [m]. Shape (k, 3).
+        translation: ``{}^w t_c`` [m]. Shape (3,).
+        rotation: ``{}^w R_c``. Shape (3, 3).
         focal: Focal length ``f`` [px].
         min_depth: Smallest depth used as divisor [m] (0: none); a NaN depth stays NaN.
 
@@ -260,6 +270,7 @@ def perspective(
         Image points ``[u, v]`` [px], shape (k, 2) (infinite or NaN at a zero depth), and
         depths [m], shape (k,).
     """
+    in_camera = np.dot(points_world - translation, rotation)
     k = in_camera.shape[0]
     image, depths = np.empty((k, 2)), np.empty(k)
     for i in range(k):
