@@ -26,6 +26,7 @@ from pbvs_pin.exceptions import (
     ScenarioError,
     ViewerUnavailable,
 )
+from pbvs_pin.report import ENGINE_ROBOTS
 from pbvs_pin.validation import positive_number
 
 if TYPE_CHECKING:
@@ -171,12 +172,13 @@ def _reproduce(args: argparse.Namespace) -> None:
     """Run the paper's four experiments and write the report."""
     from pbvs_pin.experiments import reproduce
 
-    for robot in args.robots:
+    for robot in [*args.robots, *args.engines]:
         if robot not in ROBOT_NAMES:
             raise RobotNotFound(robot, ROBOT_NAMES)
     report = reproduce(
         Path(args.out),
         robots=tuple(args.robots),
+        engines=tuple(args.engines),
         baseline=not args.no_baseline,
         compensation=not args.no_compensation,
         replays=not args.no_replay,
@@ -303,6 +305,14 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="NAME",
         help="shipped robots to repeat the experiments on besides the reference robot "
         "(none: give the option alone)",
+    )
+    reproduce.add_argument(
+        "--engines",
+        nargs="*",
+        default=list(ENGINE_ROBOTS),
+        metavar="NAME",
+        help="shipped robots whose experiments are also run on the MuJoCo plant and compared "
+        "with the Pinocchio plant (none: give the option alone)",
     )
     reproduce.add_argument(
         "--no-replay", action="store_true", help="skip the HTML replays of the reference runs"

@@ -11,15 +11,17 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from pbvs_pin.catalogue import OTHER_ROBOTS
+from pbvs_pin.catalogue import OTHER_ROBOTS, REFERENCE_ROBOT
 from pbvs_pin.exceptions import OutputError, RunInterrupted
 from pbvs_pin.report import (
     CLAIMS,
     COMPENSATION_MODES,
+    ENGINE_ROBOTS,
     FLAG_RULES,
     RUN_HEADER,
     claims_table,
     compensation_table,
+    engines_table,
     run_row,
     runs_table,
 )
@@ -103,6 +105,7 @@ def reproduce(
     echo: Callable[[str], None] = print,
     replays: bool = True,
     robustness: bool = True,
+    engines: tuple[str, ...] = ENGINE_ROBOTS,
 ) -> Path:
     """Run Experiments 1-4 (reference robot, other robots, IBVS, compensation); write the report.
 
@@ -121,6 +124,8 @@ def reproduce(
         robustness: Also run the robustness map of :mod:`pbvs_pin.robustness` (each camera
             fault alone, Experiment 1, without and with compensation) and draw
             ``robustness.png``.
+        engines: Robots whose experiments are also run on the MuJoCo plant and reported
+            beside their Pinocchio-plant runs (a Pinocchio run not made above is made).
 
     Returns:
         Path of the markdown report.
@@ -134,8 +139,11 @@ def reproduce(
     )
 
     reference, others, classic, analyses, modes, pairs = [], [], [], [], [], []
+    plants: list[dict[str, Any]] = []
     gain = matched_ibvs_gain() if baseline else 0.0
-    jobs = len(CLAIMS) * (1 + len(robots) + baseline + compensation * (len(COMPENSATION_MODES) - 1))
+    extra_pinocchio = [r for r in engines if r != REFERENCE_ROBOT and r not in robots]
+    runs = 1 + len(robots) + baseline + compensation * (len(COMPENSATION_MODES) - 1)
+    jobs = len(CLAIMS) * (runs + len(engines) + len(extra_pinocchio))
     done = 0
 
     def finished(summary: dict[str, Any]) -> dict[str, Any]:
@@ -165,11 +173,12 @@ def reproduce(
             pairs.append((name, comparison_figures(passivity_log), comparison_figures(ibvs_log)))
         if compensation:
             modes += _compensation_runs(name, reference[-1], out, finished)
+        plants += _engine_runs(name, reference + others, engines, out, finished)
     robust = _robustness_map(out, echo) if robustness else ""
     echo(f"writing the report {out / 'report.md'}")
     comparison = baseline_section(pairs, gain) if baseline else ""
     text = _report(reference, others, classic, modes, replays)
-    text += comparison + _analysis_section(analyses) + robust
+    text += _engines_section(plants) + comparison + _analysis_section(analyses) + robust
     path = out / "report.md"
     write_text_atomically(path, text)
     echo("")
@@ -190,6 +199,57 @@ def _compensation_runs(
         folder = out / "compensation" / mode / name
         rows.append(finished(run_scenario(scenario, folder, figures=False)[1]))
     return rows
+
+
+def _engine_runs(
+    name: str,
+    made: list[dict[str, Any]],
+    engines: tuple[str, ...],
+    out: Path,
+    finished: Callable[[dict], dict],
+) -> list[dict[str, Any]]:
+    """Experiment ``name`` of each robot in ``engines`` on both plants.
+
+    A Pinocchio-plant run already ``made`` is reused; the MuJoCo runs go to
+    ``out/mujoco/ROBOT/NAME`` (figures skipped).
+    """
+    rows = []
+    for robot in engines:
+        pinocchio = next(
+            (s for s in made if s["scenario"] == name and s["robot"] == robot), None
+        )
+        scenario = load_scenario(name).with_values(**{"robot.name": robot})
+        if pinocchio is None:
+            pinocchio = finished(run_scenario(scenario, out / robot / name, figures=False)[1])
+        mujoco = scenario.with_values(**{"plant.engine": "mujoco"})
+        folder = out / "mujoco" / robot / name
+        rows += [pinocchio, finished(run_scenario(mujoco, folder, figures=False)[1])]
+    return rows
+
+
+def _engines_section(plants: list[dict[str, Any]]) -> str:
+    """The report's section comparing the Pinocchio and MuJoCo plants."""
+    if not plants:
+        return ""
+    return "\n".join(
+        [
+            "",
+            "## Two plants: the controller's own model (Pinocchio) and MuJoCo physics",
+            "",
+            "The same scenarios on the Pinocchio plant (the URDF's rigid-body dynamics, wheels "
+            "that never slip) and on MuJoCo (the same URDF, wheels rolling with friction on a "
+            "floor; the Pioneer 3-AT is skid-steer and slips sideways when it turns). The "
+            "controller, its model and its sensors are the same. Odometry drift: distance and "
+            "heading between the wheel-odometry pose and the true pose at the end; lateral "
+            "slip: RMS of the platform's sideways speed; yaw rate / wheels': the platform's "
+            "true turn rate over the one its wheel speeds imply (1 without slip). The "
+            "real-time factor of a run includes compiling the kernels when they were not "
+            "compiled yet (the first run).",
+            "",
+            engines_table(plants),
+            "",
+        ]
+    )
 
 
 def _robustness_map(out: Path, echo: Callable[[str], None]) -> str:

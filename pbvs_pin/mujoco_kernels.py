@@ -133,6 +133,9 @@ def servo_commands(
     friction: np.ndarray,
     friction_speed: float,
     compensated: np.ndarray,
+    integral_rates: np.ndarray,
+    arm_effort: np.ndarray,
+    arm_integral: np.ndarray,
     h: float,
     gainprm: np.ndarray,
     biasprm: np.ndarray,
@@ -156,8 +159,9 @@ def servo_commands(
     ``[u, omega, arm]`` (``u`` moves the free joint along the heading, ``omega`` turns it about z;
     the wheels, on other branches, do not couple with the arm), is the velocity actuator's gain
     (``gainprm = K``, ``biasprm[2] = -K``); its command is
-    ``r + (D r + F tanh(r / w) + G g) / K`` with ``r`` the clipped reference and the friction
-    band ``w = max(v_s, F h / M_jj)`` of :func:`pbvs_pin.servo.servo_step`.
+    ``r + (D r + F tanh(r / w) + G g + K e / T_I) / K`` with ``r`` the clipped reference, the
+    friction band ``w = max(v_s, F h / M_jj)`` and the integral action ``K e / T_I``,
+    ``e += h (r - v)``, of :func:`pbvs_pin.servo.servo_step`.
 
     Args:
         mass: MuJoCo's dense mass matrix (``mj_fullM``). Shape (nv, nv).
@@ -190,6 +194,10 @@ def servo_commands(
         friction: ``F_j``. Shape (n_arm,).
         friction_speed: ``v_s``.
         compensated: Diagonal of ``G`` (1.0 or 0.0). Shape (n_arm,).
+        integral_rates: ``1 / T_I`` of the arm servos' integral action [1/s]. Shape (n_arm,).
+        arm_effort: The arm servos' effort limits (``inf``: none). Shape (n_arm,).
+        arm_integral: Updated: each arm servo's integral ``e`` of ``r - v``, held within
+            ``|K e / T_I| <= effort``. Shape (n_arm,).
         h: Step [s].
         gainprm: Written: ``model.actuator_gainprm``. Shape (nu, 10).
         biasprm: Written: ``model.actuator_biasprm``. Shape (nu, 10).
@@ -230,10 +238,15 @@ def servo_commands(
         limit = speed_limits[n_base + j]
         reference = min(max(v_ref[n_base + j], -limit), limit)
         width = max(friction_speed, friction[j] * h / mass[a, a])
+        if integral_rates[j] > 0.0:
+            bound = arm_effort[j] / (gain * integral_rates[j])
+            error = arm_integral[j] + h * (reference - qvel[a])
+            arm_integral[j] = min(max(error, -bound), bound)
         feed_forward = (
             damping[j] * reference
             + friction[j] * np.tanh(reference / width)
             + compensated[j] * gravity[j]
+            + gain * integral_rates[j] * arm_integral[j]
         )
         actuator = n_wheels + j
         gainprm[actuator, 0] = gain

@@ -314,6 +314,9 @@ class MujocoPlant:
         self._damping = np.ascontiguousarray(servo.damping[n_base:], dtype=float)
         self._friction = np.ascontiguousarray(servo.friction[n_base:], dtype=float)
         self._compensated = np.asarray(servo.gravity_compensated[n_base:], dtype=float)
+        self._integral_rates = np.ascontiguousarray(servo.integral_rates[n_base:], dtype=float)
+        self._arm_effort = np.ascontiguousarray(servo.effort[n_base:], dtype=float)
+        self.arm_integral = np.zeros(robot.n_arm)  # the arm servos' integral states
         self._full_mass = np.zeros((model.nv, model.nv))
         wheels = [model.joint(name) for name in self.axle.wheel_joints]
         left = model.body_pos[[j.bodyid[0] for j in wheels], 1] > 0.0
@@ -360,7 +363,8 @@ class MujocoPlant:
             wheel_integral_time, self._yaw_integral, self._yaw_gain, self._yaw_integral_limit,
             self._arm_dof, self._arm_joint, self._arm_body, self._arm_slide, servo_weight,
             self._inverse_time_constants, self._damping, self._friction, servo.friction_speed,
-            self._compensated, dt, model.actuator_gainprm, model.actuator_biasprm, data.ctrl,
+            self._compensated, self._integral_rates, self._arm_effort, self.arm_integral, dt,
+            model.actuator_gainprm, model.actuator_biasprm, data.ctrl,
         )  # fmt: skip
         self.reset(q)
         if settle > 0:
@@ -379,6 +383,7 @@ class MujocoPlant:
         self._q = None
         self._wheel_integral[:] = 0.0
         self._yaw_integral[:] = 0.0
+        self.arm_integral[:] = 0.0
         self._platform_state[:] = 0.0
         yaw = np.arctan2(q[3], q[2])
         self.data.qpos[:7] = [q[0], q[1], 0.0, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]

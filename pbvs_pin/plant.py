@@ -61,6 +61,7 @@ class Plant:
         self._params, self._indices = pack_servos(loop, robot.selection, self.gravity_weight, dt)
         self._v_pin = np.zeros(robot.model.nv)
         self._displacement = np.zeros(robot.model.nv)
+        self.integral = np.zeros(robot.n)  # the servos' integral states
         self.v = np.zeros(robot.n)
         drive = robot.base
         self._wheel_map = drive.wheel_map() if isinstance(drive, DifferentialDrive) else None
@@ -107,7 +108,7 @@ class Plant:
             gravity = pin.computeGeneralizedGravity(tuned.model, tuned.data, self.q)
         self._v = packed_servo_step(
             mass, servo_mass, bias, gravity, self._params, self._indices, self.q, self._v,
-            np.asarray(v_ref, dtype=float), self._v_pin, self._displacement,
+            np.asarray(v_ref, dtype=float), self.integral, self._v_pin, self._displacement,
         )  # fmt: skip
         self.q = pin.integrate(model, self.q, self._displacement)
         if self._wheel_map is not None:

@@ -1,7 +1,8 @@
 """The robustness map (issue 13, item 6): each camera fault raised alone until the loop breaks.
 
 The map is read from the shipped spec ``pbvs_pin/sweeps/robustness.toml``: a base scenario, the
-compensation (prediction along eq. (3), a hold through lost frames, feature smoothing) and one
+compensation (``[map.compensation]``: prediction along eq. (3), a hold through lost frames,
+feature smoothing), the values without it (``[map.without]``: the paper's estimator) and one
 ``[[fault]]`` block per fault with its field and sizes. Each size is run twice, without and with
 the compensation. A run is *broken* when the max ``|xi_true - xi_d|`` over the last ``window_s``
 seconds is above ``threshold_px``, or the target is lost in that window (issue 13's definition).
@@ -101,8 +102,7 @@ def run_map(
         for size in fault["sizes"]:
             for variant in VARIANTS:
                 values = dict(fault.get("fixed", {}), **{fault["field"]: size})
-                if variant == "with":
-                    values.update(setup["compensation"])
+                values.update(setup["compensation" if variant == "with" else "without"])
                 log = simulate(base.with_values(**values), progress=False)
                 error, lost = final_error(log, setup["window_s"])
                 broken = lost or not error <= setup["threshold_px"]

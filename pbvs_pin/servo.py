@@ -3,8 +3,9 @@ r"""The robot's low-level velocity servos, as the URDF describes the joints: eq.
 One servo per actuated velocity ``v_i`` (platform forward speed and yaw rate, arm joint rates)
 applies
 
-.. math:: \tau_i = K_i(q)\,(r_i - v_i) + D_i r_i + F_i \tanh(r_i / v_s) + G_i g_{v,i},
-          \quad |\tau_i| \le \tau_{max,i},\quad r_i = \mathrm{clip}(v_{ref,i}, \pm v_{max,i})
+.. math:: \tau_i = K_i(q)\,(r_i - v_i + e_i / T_{I,i}) + D_i r_i + F_i \tanh(r_i / v_s)
+          + G_i g_{v,i},\quad |\tau_i| \le \tau_{max,i},\quad r_i = \mathrm{clip}(v_{ref,i},
+          \pm v_{max,i}),\quad \dot e_i = r_i - v_i
 
 to the rigid-body dynamics with the URDF's viscous damping ``D`` and Coulomb friction ``F``
 (Pinocchio ``model.damping``, ``model.friction``; friction smoothed over ``v_s``),
@@ -21,6 +22,11 @@ to the rigid-body dynamics with the URDF's viscous damping ``D`` and Coulomb fri
   F tanh(v / v_s)`` cancels the feed-forward exactly at ``v = r``, so a commanded speed is
   reached (no ``K / (K + D)`` shortfall). The closed loop of one uncoupled joint is then a lag
   of time constant ``M_ii / (K_i + D_i) <= T_i``.
+- **Integral action** on the arm joints (``T_I = 5 T``, :data:`INTEGRAL_TIME_RATIO`), as arm
+  drives have: a steady load the feed-forward does not know of (an unknown payload's weight)
+  is taken by the integral instead of leaving a velocity error ``load / K``. It overshoots a
+  step of the reference by about 1 %. Eq. (1) and the compensation of eq. (20) model the
+  proportional part only.
 - **Limits**: references are clipped to the URDF speed limits, torques to its ``effort``
   limits (``effort <= 0`` in a URDF means "not given": no limit), and ``tau_stop`` is a
   unilateral, inelastic joint stop: a joint never passes its position limits (continuous
@@ -66,6 +72,12 @@ servo tracks speed within a few tens of milliseconds)."""
 PRISMATIC_TIME_CONSTANT = 0.05
 """Time constant [s] of a prismatic joint's servo (lifts and telescopes move whole arm
 sections through a screw or belt: slower than a revolute joint)."""
+
+INTEGRAL_TIME_RATIO = 5.0
+"""An arm servo's integral time over its time constant, ``T_I = 5 T``: one joint's PI loop
+``M_ii vdot = K (e + e_I / T_I)`` with ``M_ii / K = T`` has damping ratio ``sqrt(T_I / T) / 2``
+= 1.1, so the integral removes a steady load (an unknown payload's weight) without overshoot to
+speak of. The platform's servos have none: the Pioneer's identified response is first order."""
 
 FRICTION_SPEED = 1e-3
 """Speed ``v_s`` [m/s or rad/s] over which Coulomb friction ``F tanh(v / v_s)`` changes sign.
@@ -116,6 +128,8 @@ class ServoModel:
         stop_q_index: Its index in ``q``. Shape (k,), int.
         lower: Its lower limit [rad or m]. Shape (k,).
         upper: Its upper limit [rad or m]. Shape (k,).
+        integral_rates: ``1 / T_I`` of each servo's integral action [1/s] (0: none).
+            Shape (n,).
         friction_speed: ``v_s`` [m/s or rad/s].
     """
 
@@ -129,6 +143,7 @@ class ServoModel:
     stop_q_index: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
+    integral_rates: np.ndarray
     friction_speed: float = FRICTION_SPEED
 
     def __post_init__(self) -> None:
@@ -139,6 +154,7 @@ class ServoModel:
             ("friction", self.friction, lambda a: a >= 0, ">= 0"),
             ("effort", self.effort, lambda a: a > 0, "> 0"),
             ("speed_limits", self.speed_limits, lambda a: a > 0, "> 0"),
+            ("integral_rates", self.integral_rates, lambda a: a >= 0, ">= 0 1/s"),
         )
         for name, values, valid, expected in checks:
             values = np.asarray(values, dtype=float)
@@ -188,17 +204,19 @@ class ServoModel:
                     stop_q_index.append(joint.idx_q)
                     lower.append(low)
                     upper.append(high)
+        arm = np.arange(robot.n) >= robot.n_base
         return cls(
             np.array(taus, dtype=float),
             np.array(damping),
             np.array(friction),
             np.array(effort),
             np.asarray(robot.velocity_limits, dtype=float).copy(),
-            np.arange(robot.n) >= robot.n_base,
+            arm,
             np.array(stop_index, dtype=np.int64),
             np.array(stop_q_index, dtype=np.int64),
             np.array(lower, dtype=float),
             np.array(upper, dtype=float),
+            np.where(arm, 1.0 / (INTEGRAL_TIME_RATIO * np.array(taus)), 0.0),
         )
 
     @property
@@ -255,7 +273,8 @@ def pack_servos(
 
     Returns:
         ``params``: ``1 / T``, ``D``, ``F``, effort, speed limits, ``I - G`` (n each), the
-        stops' lower and upper limits (k each), ``S`` row-major (nv n), ``v_s``, ``h``;
+        stops' lower and upper limits (k each), ``S`` row-major (nv n), ``v_s``, ``h``,
+        ``1 / T_I`` (n);
         ``indices``: ``n, nv, k``, the stops' actuated indices (k), their indices in ``q`` (k).
     """
     nv, n = selection.shape
@@ -271,6 +290,7 @@ def pack_servos(
             servo.upper,
             selection.ravel(),
             [servo.friction_speed, h],
+            servo.integral_rates,
         ]
     ).astype(float)
     k = servo.stop_index.shape[0]
@@ -289,6 +309,7 @@ def packed_servo_step(
     q: np.ndarray,
     v: np.ndarray,
     v_ref: np.ndarray,
+    integral: np.ndarray,
     v_pin_out: np.ndarray,
     displacement_out: np.ndarray,
 ) -> np.ndarray:
@@ -305,6 +326,7 @@ def packed_servo_step(
         q: Configuration now (the stops' positions are read from it). Shape (nq,).
         v: Actuated velocity now. Shape (n,).
         v_ref: Velocity reference. Shape (n,).
+        integral: Updated: the servos' integral states (:func:`servo_step`). Shape (n,).
         v_pin_out: Written: ``S v_{k+1}``. Shape (nv,).
         displacement_out: Written: ``S v_{k+1} h``. Shape (nv,).
 
@@ -323,7 +345,7 @@ def packed_servo_step(
         params[2 * n : 3 * n], params[a + nv * n], params[3 * n : 4 * n],
         params[4 * n : 5 * n], params[5 * n : 6 * n], stop_index, positions,
         params[6 * n : 6 * n + k], params[6 * n + k : a], v, v_ref, params[a + nv * n + 1],
-        v_pin_out, displacement_out,
+        params[a + nv * n + 2 : a + nv * n + 2 + n], integral, v_pin_out, displacement_out,
     )  # fmt: skip
 
 
@@ -348,6 +370,8 @@ def servo_step(
     v: np.ndarray,
     v_ref: np.ndarray,
     h: float,
+    integral_rates: np.ndarray,
+    integral: np.ndarray,
     v_pin_out: np.ndarray,
     displacement_out: np.ndarray,
 ) -> np.ndarray:
@@ -356,8 +380,13 @@ def servo_step(
     The servo's stiffness, the damping and the friction's slope are taken at the new
     velocity (stable for stiff servos at a 1 ms step):
 
-    .. math:: (M_v + h (K + D + F'))\, v_{k+1} = M_v v_k
-              + h (K r + \tau_{ff} - C_v v_k - g_v - F(v_k) + F' v_k) + h \tau_{stop}
+    .. math:: (M_v + h (K' + D + F'))\, v_{k+1} = M_v v_k
+              + h (K' r + K e_k / T_I + \tau_{ff} - C_v v_k - g_v - F(v_k) + F' v_k)
+              + h \tau_{stop}
+
+    with the integral action ``K e / T_I``, ``e_{k+1} = e_k + h (r - v_{k+1})``, taken at the
+    new velocity too: ``K' = K (1 + h / T_I)``. A saturated servo holds its integral, and
+    ``|K e / T_I|`` never exceeds the effort limit (anti-windup).
 
     A small active set decides which servos saturate (their torque becomes ``+-effort``) and
     which stops act (the joint's new velocity lands it on the limit, and the stop's reaction
@@ -385,6 +414,8 @@ def servo_step(
         v: Actuated velocity now. Shape (n,).
         v_ref: Velocity reference. Shape (n,).
         h: Step [s].
+        integral_rates: ``1 / T_I`` [1/s] (0: no integral action). Shape (n,).
+        integral: Updated: ``e``, each servo's integral of ``r - v`` [rad or m]. Shape (n,).
         v_pin_out: Written: ``S v_{k+1}``. Shape (nv,).
         displacement_out: Written: ``S v_{k+1} h`` for ``pin.integrate``. Shape (nv,).
 
@@ -396,7 +427,8 @@ def servo_step(
     servo_mass_v = mass_v
     if servo_mass_upper is not mass_upper:
         servo_mass_v, _ = actuated_terms(servo_mass_upper, bias, gravity, selection, np.ones(n))
-    gains = scheduled_stiffness(servo_mass_v, inverse_time_constants, np.zeros(n))
+    stiffness = scheduled_stiffness(servo_mass_v, inverse_time_constants, np.zeros(n))
+    gains = stiffness * (1.0 + h * integral_rates)
     reference = np.empty(n)
     feed_forward = np.empty(n)
     slope = np.empty(n)
@@ -412,6 +444,7 @@ def servo_step(
             damping[i] * reference[i]
             + friction[i] * np.tanh(reference[i] / width)
             + (1.0 - gravity_weight[i]) * gravity_v
+            + stiffness[i] * integral_rates[i] * integral[i]
         )
         now = np.tanh(v[i] / width)
         slope[i] = friction[i] / width * (1.0 - now * now)
@@ -473,6 +506,10 @@ def servo_step(
         v_next[i] = min(
             max(v_next[i], (lower[s] - positions[s]) / h), (upper[s] - positions[s]) / h
         )
+    for i in range(n):  # the integral, held while its servo saturates
+        if integral_rates[i] > 0.0 and saturated[i] == 0.0:
+            bound = effort[i] / (stiffness[i] * integral_rates[i])
+            integral[i] = min(max(integral[i] + h * (reference[i] - v_next[i]), -bound), bound)
     for a in range(selection.shape[0]):
         total = 0.0
         for j in range(n):

@@ -21,6 +21,7 @@ import pbvs_pin
 from pbvs_pin.catalogue import OTHER_ROBOTS
 from pbvs_pin.cli import main
 from pbvs_pin.exceptions import OutputError
+from pbvs_pin.report import ENGINE_ROBOTS
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.scenario import scenario_dir
 
@@ -77,7 +78,13 @@ def test_list_names_robots_arms_scenarios_and_sweeps(capsys):
         ("run", ("(default: results/run)", "(default: 1.0)", "shipped scenario name")),
         (
             "reproduce",
-            ("(default: results)", f"(default: {' '.join(OTHER_ROBOTS)})", "--no-replay", "--robots"),
+            (
+                "(default: results)",
+                f"(default: {' '.join(OTHER_ROBOTS)})",
+                "--no-replay",
+                "--robots",
+                f"(default: {' '.join(ENGINE_ROBOTS)})",
+            ),
         ),
         ("analyze", ("(default: 0.5)",)),
     ],

@@ -147,16 +147,16 @@ def _storage_steps(log: RunLog) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 def test_experiment4_converges_and_storage_does_not_increase(runs):
-    """With the default one frame of latency the sampled loop ``e+ = e - g e-`` has complex
-    poles (``g > 1/4``) and V1 may rise from frame to frame by a ripple (measured: at most
-    2.6e-5 V1(2 s)); without latency and with exact sensing it does not rise (the next
-    test)."""
+    """With a frame of latency (predicted over), encoder noise and the gyro's drift in the
+    odometry, V1 may rise from frame to frame by a ripple (measured: at most 1.5e-4 V1(2 s),
+    2.6e-5 without prediction); without latency and with exact sensing it does not rise (the
+    next test). The total rise stays below 5 % of V1(2 s)."""
     log, summary = runs["experiment4"]
     assert _max_final_error(log) < 0.5
     storage = log["storage"]
     steps, bump, v1_transient = _storage_steps(log)
     assert v1_transient > 0
-    assert np.max(steps[~bump]) <= 1e-4 * v1_transient, "V1 increased away from the stop"
+    assert np.max(steps[~bump]) <= 1e-3 * v1_transient, "V1 increased away from the stop"
     increase = np.sum(np.maximum(steps, 0.0))
     assert increase <= 0.05 * v1_transient
     assert summary["storage_increase_after_transient"] == pytest.approx(increase, abs=1e-15)

@@ -10,9 +10,8 @@ from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.setup import build
 
 NO_LATENCY = {"camera.latency": 0.0, "estimator.predict": False}
-"""A frame captured at 0 s is delivered at 0 s (the default latency is one frame), and the
-controller servoes on it as measured (the shipped experiments predict it to the step's ``q``,
-which the modular step would do and the fused step, given the measurement, would not)."""
+"""A frame captured at 0 s is delivered at 0 s (the default latency is one frame) and servoed
+on as it is (the shipped experiments predict it forward to the configuration now)."""
 
 
 def test_loop_jacobians_match_the_feature_set_at_the_current_configuration():

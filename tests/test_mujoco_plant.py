@@ -233,7 +233,9 @@ def test_arm_servo_reaches_its_speed_within_a_few_time_constants():
     _run(plant, v_ref, REVOLUTE_TIME_CONSTANT)
     assert 0.5 * (1 - np.exp(-1)) - 0.1 < plant.v[index] < 0.5
     _run(plant, v_ref, 4 * REVOLUTE_TIME_CONSTANT)
-    assert plant.v[index] == pytest.approx(0.5, rel=0.01)
+    assert plant.v[index] == pytest.approx(0.5, rel=0.05)  # the integral's overshoot
+    _run(plant, v_ref, 15 * REVOLUTE_TIME_CONSTANT)
+    assert plant.v[index] == pytest.approx(0.5, rel=0.005)
 
 
 def test_arm_servo_is_clipped_at_its_speed_limit():
@@ -242,7 +244,7 @@ def test_arm_servo_is_clipped_at_its_speed_limit():
     index = robot.velocity_names.index("shoulder_yaw_joint")
     v_ref = np.zeros(robot.n)
     v_ref[index] = 10.0 * robot.velocity_limits[index]
-    _run(plant, v_ref, 0.2)
+    _run(plant, v_ref, 0.5)
     assert plant.v[index] == pytest.approx(robot.velocity_limits[index], rel=0.01)
 
 

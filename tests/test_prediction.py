@@ -12,9 +12,12 @@ import pytest
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 
-EXACT = {"estimator.kind": "exact", "camera.noise_px": 0.0, "duration": 6.0}
-"""Experiment 1 (target on a line) with the true target velocity and no pixel noise: the
-prediction is then exact up to the frame's sampling, so it must match the true features."""
+EXACT = {
+    "estimator.kind": "exact", "camera.noise_px": 0.0, "sensing.exact": True, "duration": 6.0
+}  # fmt: skip
+"""Experiment 1 (target on a line) with the true target velocity, no pixel noise and exact
+encoders and odometry: the prediction is then exact up to the frame's sampling, so it must
+match the true features."""
 
 OCCLUSION = {"camera.occlusion_starts": (2.0,), "camera.occlusion_duration": 1.0}
 """A 1 s occlusion from 2 s, while the target still moves."""

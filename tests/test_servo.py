@@ -81,16 +81,19 @@ def test_servo_damping_from_the_reference_robots_urdf(cyton, cyton_urdf):
 
 @pytest.mark.parametrize(("index", "speed"), [(PAN, 0.4), (PAN, -0.05), (SLIDE, 0.1)])
 def test_damped_joint_reaches_the_commanded_speed(damped, index, speed):
-    """With URDF damping D and friction, v reaches v_ref to 1 % within 3 time constants.
+    """With URDF damping D and friction, v reaches v_ref to 2 % within 3 time constants (the
+    integral action's transient overshoots by about 1 % and then decays slowly) and to 0.5 %
+    after 20 (before the slide reaches its stop).
 
-    A servo without feed-forward would stop at K / (K + D) of the command.
+    A servo without feed-forward would first stop near K / (K + D) of the command.
     """
     servo = ServoModel.from_robot(damped)
     v_ref = np.zeros(damped.n)
     v_ref[index] = speed
-    three = 3 * servo.time_constants[index]
-    velocities, _ = _run(damped, servo, _start(damped), v_ref, three)
-    assert velocities[-1, index] == pytest.approx(speed, rel=0.01)
+    later = 20 * servo.time_constants[index]
+    velocities, _ = _run(damped, servo, _start(damped), v_ref, later)
+    assert velocities[len(velocities) * 3 // 20 - 1, index] == pytest.approx(speed, rel=0.02)
+    assert velocities[-1, index] == pytest.approx(speed, rel=0.005)
 
 
 def _rise_time(velocities, index, target):
@@ -222,7 +225,7 @@ def test_reference_model_is_the_servoed_robot(request, load, name):
 
 
 @pytest.mark.parametrize(
-    "field", ["time_constants", "damping", "friction", "effort", "speed_limits"]
+    "field", ["time_constants", "damping", "friction", "effort", "speed_limits", "integral_rates"]
 )
 def test_invalid_servo_parameters_raise(damped, field):
     servo = ServoModel.from_robot(damped)
@@ -284,16 +287,20 @@ def test_packed_servo_step_is_servo_step_with_its_constants_packed(damped):
         outputs = [np.zeros(model.nv) for _ in range(4)]
         mass, bias, gravity = terms
         tuned = 1.5 * mass  # the servos' own mass matrix (a payload they do not know of)
+        integral = 0.01 * rng.normal(size=damped.n)
+        integrals = [integral.copy(), integral.copy()]
         packed = packed_servo_step(
-            mass, tuned, bias, gravity, params, indices, q, v, v_ref, *outputs[:2]
+            mass, tuned, bias, gravity, params, indices, q, v, v_ref, integrals[0], *outputs[:2]
         )
         direct = servo_step(
             mass, tuned, bias, gravity, damped.selection, 1.0 / servo.time_constants, servo.damping,
             servo.friction, servo.friction_speed, servo.effort, servo.speed_limits,
             servo.gravity_weight, servo.stop_index, q[servo.stop_q_index], servo.lower,
-            servo.upper, v, v_ref, DT, *outputs[2:],
+            servo.upper, v, v_ref, DT, servo.integral_rates, integrals[1], *outputs[2:],
         )  # fmt: skip
         np.testing.assert_array_equal(packed, direct)
+        np.testing.assert_array_equal(integrals[0], integrals[1])
+        assert not np.array_equal(integrals[0], integral)  # the integral moved
         np.testing.assert_array_equal(outputs[0], outputs[2])
         np.testing.assert_array_equal(outputs[1], outputs[3])
     assert servo.stop_index.size > 0 and np.any(servo.friction > 0)

@@ -88,8 +88,9 @@ def test_base_motion_and_camera_pitch_leave_an_upright_image_upright(load):
 # ---------------------------------------------------------------- projected null space
 def _setup(name: str, experiment: str = "experiment4", **gains):
     """A loop setup on ``name`` with a first frame taken, the controller's gains replaced."""
-    at_once = {"camera.latency": 0.0, "estimator.predict": False}  # the frame as seen, at once
-    scenario = load_scenario(experiment).with_values(**{"robot.name": name, **at_once})
+    scenario = load_scenario(experiment).with_values(
+        **{"robot.name": name, "camera.latency": 0.0, "estimator.predict": False}  # a frame at once, as it is
+    )
     setup = build(scenario)
     if gains:
         setup.controller = PassivityController(

@@ -308,6 +308,7 @@ class RunRecorder:
             "source": scenario.source,
             **setup.robot_meta(),
             "law": scenario.controller.law,
+            "engine": scenario.plant.engine,
             "feature_scale": gains.feature_scale,
             "k": list(np.broadcast_to(np.asarray(gains.k, dtype=float), (3,))),
             "posture_target": setup.posture_target.tolist(),

@@ -69,6 +69,7 @@ def summarize(log: RunLog) -> dict[str, Any]:
         "scenario": log.meta["scenario"],
         "robot": log.meta["robot"],
         "law": log.meta["law"],
+        "engine": log.meta.get("engine", "pinocchio"),
         "compensation": log.meta.get("compensation"),
         "duration_s": float(t[-1]),
         "image_height_px": int(log.meta["camera"]["height"]),
