@@ -171,7 +171,7 @@ class CameraIntrinsics:
         return self.focal_px * diameter_m / depth
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def point_jacobians(
     points: np.ndarray, depths: np.ndarray, focal: float
 ) -> tuple[np.ndarray, np.ndarray]:

@@ -92,7 +92,7 @@ def _one_line(err: Exception) -> str:
     return " ".join(str(err).split())
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def arm_angles(q: np.ndarray, idx_q: np.ndarray, continuous: np.ndarray) -> np.ndarray:
     """Arm joint positions from a configuration; continuous joints (cos, sin) give an angle.
 

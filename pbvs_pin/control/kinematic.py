@@ -47,7 +47,7 @@ ROUNDOFF_FLOOR = 1e-12
 """Smallest eigenvalue of the regularised ``J W^-1 J^T``, relative to its trace."""
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def storage_function(error_units: np.ndarray, k: np.ndarray) -> float:
     r"""``V1`` of eq. (7) in closed form.
 
@@ -65,7 +65,7 @@ def storage_function(error_units: np.ndarray, k: np.ndarray) -> float:
     return total
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def saturate(u: np.ndarray, limits: np.ndarray) -> tuple[np.ndarray, float]:
     """Scale ``u`` uniformly so that ``|u_i| <= limits_i``; return it and the factor."""
     ratio = 0.0
@@ -76,7 +76,7 @@ def saturate(u: np.ndarray, limits: np.ndarray) -> tuple[np.ndarray, float]:
     return u / ratio, 1.0 / ratio
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def damped_pseudo_inverse(
     jacobian: np.ndarray, weight_inverse: np.ndarray, threshold: float, max_damping: float
 ) -> tuple[np.ndarray, float, bool]:
@@ -115,7 +115,7 @@ def damped_pseudo_inverse(
     return right, sigma_min, damped
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def passivity_law(
     error: np.ndarray,
     jacobian: np.ndarray,
