@@ -12,7 +12,7 @@ baseline or a user-defined objective uses the modular classes.
 
 The equations' kernels are declared ``inline="always"``: Numba compiles their bodies into the
 fused step, so that no call and no tuple of returned arrays passes between them (on the
-reference robot the step's arithmetic went from about 4.5 to 3.9 us; the modular classes call
+reference robot the compiled call went from about 4.5 to 3.9 us; the modular classes call
 the same kernels, compiled on their own).
 
 Numba keys its on-disk cache on each compiled function's own file, so the cached
