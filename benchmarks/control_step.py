@@ -5,15 +5,18 @@ The control step timed is the one the simulation loop runs: :class:`FusedControl
 
 Run: ``python benchmarks/control_step.py``. Prints, per robot, the median time of one full
 control step (kinematic controller, eq. 34, plus dynamic compensation, eq. 20) and of the
-Pinocchio calls that step makes (joint Jacobians, camera frame placement and Jacobian,
-CRBA, nonlinear effects, gravity), both
-measured in this run, and their ratio; then the real-time factor of a closed-loop simulation
-with a 1 kHz controller on the reference robot, its cost per simulated second against the
-number of arm joints (a Panda on the reference platform with the camera on its link 3 ... 7:
-3 ... 7 arm joints), and where the loop's time goes on the reference robot: the Pinocchio
-calls per simulated millisecond that no speed-up removes (the floor), the rest of the control
-step and of the plant step, and everything else in the loop. Medians over repeats: the machine
-is shared.
+Pinocchio calls that step makes (joint Jacobians, camera frame placement and Jacobian, CRBA,
+nonlinear effects, gravity), both measured in this run, and their ratio; where the step's time
+goes (Pinocchio, Python glue, passing the 15 arguments to compiled code, the compiled
+arithmetic) and the ratio it would have with no arithmetic at all (its floor); then the
+real-time factor of a closed-loop simulation with a 1 kHz controller on the reference robot, its
+cost per simulated second against the number of arm joints (a Panda on the reference platform
+with the camera on its link 3 ... 7: 3 ... 7 arm joints), and where the loop's time goes on the
+reference robot: the Pinocchio calls per simulated millisecond that no speed-up removes (the
+floor), the rest of the control step and of the plant step, the sensors' reading
+(:class:`~pbvs_pin.sim.sensing.Sensing`), the prediction of the newest frame to now
+(:class:`~pbvs_pin.sim.perception.Perception`), and everything else in the loop. Medians over
+repeats: the machine is shared.
 """
 
 from __future__ import annotations
@@ -23,12 +26,14 @@ import time
 
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
-from pbvs_pin.control.step import FusedControlStep
+from pbvs_pin.control.step import FusedControlStep, fused_control_step
 from pbvs_pin.plant import Plant
 from pbvs_pin.sim.loop import shares_dynamics, simulate
 from pbvs_pin.sim.perception import Perception
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.sim.sensing import Sensing
 from pbvs_pin.sim.setup import build
 
 REPEATS = 15
@@ -43,28 +48,38 @@ def _mean_time(function, calls: int = CALLS) -> float:
     return (time.perf_counter() - start) / calls
 
 
-def _interleaved(first, second, repeats: int = REPEATS) -> tuple[float, float, float]:
-    """Medians of both functions' times and of their ratio, timed alternately.
+def _interleaved(*functions, repeats: int = REPEATS) -> tuple[float, ...]:
+    """Medians of the functions' times, and of the first's over the second's, timed alternately.
 
-    Alternating keeps both under the same load of this shared machine.
+    Alternating keeps all under the same load of this shared machine.
     """
-    first(), second()
-    pairs = [(_mean_time(first), _mean_time(second)) for _ in range(repeats)]
-    return (
-        statistics.median(a for a, _ in pairs),
-        statistics.median(b for _, b in pairs),
-        statistics.median(a / b for a, b in pairs),
-    )
+    for function in functions:
+        function()
+    rows = [[_mean_time(function) for function in functions] for _ in range(repeats)]
+    medians = [statistics.median(row[i] for row in rows) for i in range(len(functions))]
+    return (*medians, statistics.median(row[0] / row[1] for row in rows))
 
 
-def control_step_ratio(robot_name: str) -> tuple[float, float, float]:
-    """Median control-step time, median time of its Pinocchio calls [s], median ratio."""
+@njit
+def _no_op(a, b, c, d, e, f, g, h, i, j, k, dt, params, indices, state) -> None:
+    """A compiled call that does nothing with the fused step's 15 arguments."""
+
+
+def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, float]:
+    """Median times [s] of the control step and its parts, and its ratio to its Pinocchio calls.
+
+    Returns the step, its Pinocchio calls, their median ratio, the compiled call alone and a
+    compiled call that does nothing with the same arguments. The difference step - Pinocchio
+    calls - compiled call is the Python glue; compiled call - no-op is the compiled arithmetic;
+    the no-op is the price of calling compiled code with the step's 15 arguments.
+    """
     scenario = load_scenario("experiment1").with_values(**{"robot.name": robot_name})
     setup = build(scenario)
     perception = Perception(setup)
     q = setup.plant.q
     setup.sensor.capture(0.0, setup.robot.camera_pose(q), setup.target.centres(0.0), q)
-    perception.take(setup.sensor.deliver(0.0))
+    perception.take(setup.sensor.deliver(1.0))  # after the frame latency
+    measurement = perception.measurement
     v = np.full(setup.robot.n, 0.05)
     dt = 1e-3
     fused = FusedControlStep(
@@ -74,7 +89,7 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float]:
     laser, target_velocity = np.array([np.inf, 0.0]), np.zeros(3)
 
     def step() -> None:
-        fused.step(q, v, perception.measurement, target_velocity, laser, dt)
+        fused.step(q, v, measurement, target_velocity, laser, dt)
 
     model, data = setup.model.model, setup.model.data
     frame = setup.model.camera_frame_id
@@ -88,7 +103,24 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float]:
         pin.nonLinearEffects(model, data, q, v_pin)
         pin.computeGeneralizedGravity(model, data, q)
 
-    return _interleaved(step, pinocchio_calls)
+    step()
+    arguments = (
+        pin.getFrameJacobian(model, data, frame, pin.LOCAL).copy(),
+        data.oMf[frame].rotation.copy(), data.M.copy(), data.nle.copy(), data.g.copy(), q, v,
+        measurement.points, measurement.depths, target_velocity, laser, dt, fused.params,
+        fused.indices, fused.state,
+    )  # fmt: skip
+
+    def compiled() -> None:
+        fused_control_step(*arguments)
+
+    def no_op() -> None:
+        _no_op(*arguments)
+
+    step_time, calls, compiled_time, no_op_time, ratio = _interleaved(
+        step, pinocchio_calls, compiled, no_op
+    )
+    return step_time, calls, ratio, compiled_time, no_op_time
 
 
 def closed_loop_real_time_factor(
@@ -145,15 +177,51 @@ def plant_step_times(robot_name: str) -> tuple[float, float, float]:
     return step_time, calls, integrate
 
 
+def sensing_and_prediction_times() -> tuple[float, float]:
+    """Median time of one sensor reading and of one prediction to now [s], reference robot.
+
+    The reading (:meth:`Sensing.read`: encoders, velocity filter, odometry, gyro) on a moving
+    plant; the prediction (:meth:`Perception.current`) of a frame one period old.
+    """
+    setup = build(load_scenario("experiment1"))
+    sensing, plant = Sensing(setup), setup.plant
+    v_ref = np.full(setup.robot.n, 0.1)
+    for _ in range(20):
+        plant.step(v_ref)
+    clock = iter(np.arange(1, 10**7) * 1e-3)
+    sensing.read(0.0)
+    reading = statistics.median(
+        _mean_time(lambda: sensing.read(next(clock))) for _ in range(REPEATS)
+    )
+    perception = Perception(setup)
+    q = plant.q
+    setup.sensor.capture(0.0, setup.robot.camera_pose(q), setup.target.centres(0.0), q)
+    perception.take(setup.sensor.deliver(1.0))  # after the frame latency
+    t = perception.frame.time + setup.sensor.period
+    prediction = statistics.median(
+        _mean_time(lambda: perception.current(t, q)) for _ in range(REPEATS)
+    )
+    assert perception.predicting
+    return reading, prediction
+
+
 def main() -> None:
     """Print the measurements."""
     print(f"{'robot':<16}{'n':>3}{'control step [us]':>20}{'pinocchio calls [us]':>23}{'ratio':>8}")
     steps = {}
     for name in ("pioneer_cyton", "pioneer_xarm7"):
-        step, calls, ratio = control_step_ratio(name)
-        steps[name] = (step, calls)
+        step, calls, ratio, compiled, no_op = control_step_ratio(name)
+        steps[name] = (step, calls, compiled, no_op)
         n = build(load_scenario("experiment1").with_values(**{"robot.name": name})).robot.n
         print(f"{name:<16}{n:>3}{step * 1e6:>20.1f}{calls * 1e6:>23.1f}{ratio:>8.2f}")
+    print("\nwhere the control step goes [us], and its ratio with no arithmetic at all:")
+    print(f"{'robot':<16}{'pinocchio':>10}{'python glue':>13}{'arguments':>11}"
+          f"{'arithmetic':>12}{'floor ratio':>13}")  # fmt: skip
+    for name, (step, calls, compiled, no_op) in steps.items():
+        glue = step - calls - compiled
+        floor = (calls + glue + no_op) / calls
+        print(f"{name:<16}{calls * 1e6:>10.2f}{glue * 1e6:>13.2f}{no_op * 1e6:>11.2f}"
+              f"{(compiled - no_op) * 1e6:>12.2f}{floor:>12.2f}x")  # fmt: skip
     factor, _ = closed_loop_real_time_factor()
     print(f"closed loop, 1 kHz controller, pioneer_cyton: {factor:.1f}x real time")
     print("\ncost per simulated second against the arm's joints (Panda, camera on link 3 ... 7):")
@@ -163,9 +231,12 @@ def main() -> None:
         n = build(load_scenario("experiment1").with_values(**values)).robot.n
         dof_factor, valid = closed_loop_real_time_factor(5.0, **values)
         print(f"{joints:>10}{n:>4}{1e3 / dof_factor:>17.1f}{dof_factor:>10.1f}x{valid:>7.2f}")
-    shared = shares_dynamics(build(load_scenario("experiment1")))
+    reference = load_scenario("experiment1")
+    # the plant reuses the controller's terms only when it is given the plant's own state
+    shared = shares_dynamics(build(reference)) and reference.sensing.exact
     plant_step, plant_calls, integrate = plant_step_times("pioneer_cyton")
-    control_step, control_calls = steps["pioneer_cyton"]
+    control_step, control_calls, _, _ = steps["pioneer_cyton"]
+    reading, prediction = sensing_and_prediction_times()
     plant_floor = integrate if shared else plant_calls
     loop = 1e-3 / factor
     print("\nwhere a simulated millisecond goes, pioneer_cyton (one control and plant step) [us]:")
@@ -177,9 +248,11 @@ def main() -> None:
             plant_floor,
         ),
         ("plant step: the rest (glue, compiled servo kernel)", plant_step - plant_calls),
+        ("sensing: encoders, velocity filter, odometry, gyro", reading),
+        ("perception: the newest frame predicted to now", prediction),
         (
-            "loop: the rest (camera, perception, log, Python, cache misses)",
-            loop - control_step - plant_step + (plant_calls - plant_floor),
+            "loop: the rest (camera, log, Python, cache misses)",
+            loop - control_step - plant_step - reading - prediction + (plant_calls - plant_floor),
         ),
         ("total (the closed loop above)", loop),
         ("floor: the Pinocchio calls alone", control_calls + plant_floor),

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
 from pbvs_pin.exceptions import GainError
 
@@ -148,8 +149,22 @@ class DifferentialDrive(BaseAdapter):
             Shape (2,).
         """
         left, right = wheel_speeds
-        r = self.wheel_radius
-        return np.array([0.5 * r * (left + right), r * (right - left) / self.effective_track])
+        return np.array(unicycle_twist(self.wheel_radius, self.effective_track, left, right))
+
+
+@njit(cache=True)
+def unicycle_twist(radius: float, track: float, left: float, right: float) -> tuple[float, float]:
+    r"""``(u, omega)`` [m/s, rad/s] of wheel speeds ``left``, ``right`` [rad/s].
+
+    .. math:: u = r (w_l + w_r) / 2,\quad \omega = r (w_r - w_l) / b
+
+    Args:
+        radius: Wheel radius ``r`` [m].
+        track: Effective track ``b`` [m].
+        left: Left wheel speed [rad/s].
+        right: Right wheel speed [rad/s].
+    """
+    return 0.5 * radius * (left + right), radius * (right - left) / track
 
 
 def skid_steer_factor(wheel_positions: np.ndarray) -> float:

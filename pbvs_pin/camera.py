@@ -87,14 +87,10 @@ class CameraIntrinsics:
         Returns:
             Image points ``[u, v]`` [px], shape (k, 2), and depths [m], shape (k,).
         """
-        in_camera = (np.asarray(points_world, dtype=float) - camera_pose.translation) @ (
-            camera_pose.rotation
-        )
-        depths = in_camera[:, 2].copy()
-        divisor = np.maximum(depths, min_depth) if min_depth > 0 else depths
-        with np.errstate(divide="ignore", invalid="ignore"):
-            image = -self.focal_px * in_camera[:, :2] / divisor[:, None]
-        return image, depths
+        return project_points(
+            np.asarray(points_world, dtype=float), camera_pose.translation,
+            camera_pose.rotation, self.focal_px, min_depth,
+        )  # fmt: skip
 
     def project_jacobian(self, point_in_camera: npt.ArrayLike) -> np.ndarray:
         r"""Derivative of :meth:`project` with respect to the point.
@@ -175,7 +171,7 @@ class CameraIntrinsics:
         return self.focal_px * diameter_m / depth
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def point_jacobians(
     points: np.ndarray, depths: np.ndarray, focal: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -247,3 +243,40 @@ def point_interaction_matrix(focal_px: float, xi: npt.ArrayLike, depth: float) -
     """
     points = np.asarray(xi, dtype=float).reshape(1, 2)
     return point_jacobians(points, np.array([float(depth)]), float(focal_px))[0]
+
+
+@njit(cache=True, error_model="numpy")
+def project_points(
+    points_world: np.ndarray,
+    translation: np.ndarray,
+    rotation: np.ndarray,
+    focal: float,
+    min_depth: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    r"""Eq. (2) for world points seen from ``world_T_camera`` (:meth:`project_world`).
+
+    .. math:: p_c = {}^c R_w (p_w - {}^w t_c),\qquad \xi = -\frac{f}{z} [x, y]
+
+    The rotation is applied by ``np.dot`` (BLAS, as NumPy's ``@``: the same numbers).
+
+    Args:
+        points_world: Points in the world [m]. Shape (k, 3).
+        translation: ``{}^w t_c`` [m]. Shape (3,).
+        rotation: ``{}^w R_c``. Shape (3, 3).
+        focal: Focal length ``f`` [px].
+        min_depth: Smallest depth used as divisor [m] (0: none); a NaN depth stays NaN.
+
+    Returns:
+        Image points ``[u, v]`` [px], shape (k, 2) (infinite or NaN at a zero depth), and
+        depths [m], shape (k,).
+    """
+    in_camera = np.dot(points_world - translation, rotation)
+    k = in_camera.shape[0]
+    image, depths = np.empty((k, 2)), np.empty(k)
+    for i in range(k):
+        z = in_camera[i, 2]
+        depths[i] = z
+        divisor = z if min_depth <= 0 or not z < min_depth else min_depth
+        image[i, 0] = -focal * in_camera[i, 0] / divisor
+        image[i, 1] = -focal * in_camera[i, 1] / divisor
+    return image, depths

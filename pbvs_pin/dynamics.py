@@ -69,7 +69,7 @@ def rigid_body_terms(robot: MobileManipulator, q: npt.ArrayLike, v: npt.ArrayLik
     )
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def actuated_terms(
     mass_upper: np.ndarray,
     bias: np.ndarray,

@@ -42,7 +42,7 @@ class ImageMeasurement:
     depths: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def feature_jacobians(
     points: np.ndarray,
     depths: np.ndarray,

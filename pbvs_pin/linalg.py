@@ -37,8 +37,13 @@ def matvec(a: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def cholesky_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Solve ``a x = b`` for a symmetric positive definite ``a`` (shape (r, r), b (r, m))."""
+def cholesky_solve(a: np.ndarray, x: np.ndarray) -> None:
+    """Overwrite ``x`` with the solution of ``a x = b`` (``x`` holds ``b`` on entry).
+
+    Args:
+        a: Symmetric positive definite. Shape (r, r).
+        x: ``b`` on entry, the solution on return (a transposed view is fine). Shape (r, m).
+    """
     r = a.shape[0]
     low = np.zeros((r, r))
     for j in range(r):
@@ -51,7 +56,6 @@ def cholesky_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
             for k in range(j):
                 total -= low[i, k] * low[j, k]
             low[i, j] = total / low[j, j]
-    x = b.copy()
     for col in range(x.shape[1]):
         for i in range(r):
             total = x[i, col]
@@ -63,7 +67,6 @@ def cholesky_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
             for k in range(i + 1, r):
                 total -= low[k, i] * x[k, col]
             x[i, col] = total / low[i, i]
-    return x
 
 
 @njit(cache=True)

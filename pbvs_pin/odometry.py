@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 import numpy.typing as npt
+from numba import njit
 
 from pbvs_pin.base import DifferentialDrive
 from pbvs_pin.exceptions import GainError
@@ -36,6 +37,9 @@ from pbvs_pin.exceptions import GainError
 
 class WheelOdometry:
     """Dead reckoning of a differential drive from its wheel encoders.
+
+    The pose and the counts live in one array, :attr:`state`, which the compiled
+    :func:`odometry_update` advances (also from :func:`pbvs_pin.sim.sensing.sensing_step`).
 
     Args:
         drive: The controller's model of the drive (wheel radius, track).
@@ -45,8 +49,10 @@ class WheelOdometry:
             zero. Shape (2,).
 
     Attributes:
-        pose: Current estimate ``[x, y, theta]`` [m, m, rad]. Shape (3,).
-        counts: Current left and right counts. Shape (2,).
+        state: ``[x, y, theta, c_l, c_r, a_0l, a_0r, delta, r delta, b]``: the pose [m, m,
+            rad], the counts, the wheel angles where they are zero [rad], the resolution
+            ``delta`` [rad], the distance one count rolls [m] and the effective track [m].
+            Shape (10,).
     """
 
     def __init__(
@@ -61,14 +67,32 @@ class WheelOdometry:
                 f"odometry: expected counts per revolution > 0, got {counts_per_revolution}"
             )
         self.drive = drive
-        self.resolution = 2.0 * np.pi / counts_per_revolution
-        self.pose = np.array(pose, dtype=float)
-        self._origin = np.array(wheel_angles, dtype=float)
-        self.counts = np.zeros(2)
+        resolution = 2.0 * np.pi / counts_per_revolution
+        self.state = np.zeros(10)
+        self.state[:3] = np.array(pose, dtype=float)
+        self.state[5:7] = np.array(wheel_angles, dtype=float)
+        self.state[7:] = resolution, drive.wheel_radius * resolution, drive.effective_track
+
+    @property
+    def resolution(self) -> float:
+        """Encoder resolution ``delta = 2 pi / N`` [rad]."""
+        return float(self.state[7])
+
+    @property
+    def pose(self) -> np.ndarray:
+        """Current estimate ``[x, y, theta]`` [m, m, rad]. Shape (3,)."""
+        return self.state[:3].copy()
+
+    @property
+    def counts(self) -> np.ndarray:
+        """Current left and right counts. Shape (2,)."""
+        return self.state[3:5].copy()
 
     def read_counts(self, wheel_angles: npt.ArrayLike) -> np.ndarray:
         """The encoders' counts at wheel angles [rad] (shape (2,)): ``floor((a - a_0) / delta)``."""
-        return np.floor((np.asarray(wheel_angles, dtype=float) - self._origin) / self.resolution)
+        counts = np.empty(2)
+        read_counts(np.asarray(wheel_angles, dtype=float), self.state, counts)
+        return counts
 
     def update(self, counts: np.ndarray, turn: float | None = None) -> np.ndarray:
         """Advance the pose to new counts; return the count increments.
@@ -81,20 +105,54 @@ class WheelOdometry:
         Returns:
             The count increments. Shape (2,).
         """
-        increments = counts - self.counts
-        self.counts = counts
-        step = self.drive.wheel_radius * self.resolution
-        left, right = float(increments[0]) * step, float(increments[1]) * step
-        distance = 0.5 * (left + right)
-        if turn is None:
-            turn = (right - left) / self.drive.effective_track
-        if turn == 0.0:
-            forward, sideways = distance, 0.0
-        else:
-            forward = distance * math.sin(turn) / turn
-            sideways = distance * (1.0 - math.cos(turn)) / turn
-        x, y, theta = self.pose
-        c, s = math.cos(theta), math.sin(theta)
-        self.pose = np.array([x + c * forward - s * sideways, y + s * forward + c * sideways,
-                              theta + turn])  # fmt: skip
+        increments = np.empty(2)
+        given = turn is not None
+        odometry_update(self.state, np.asarray(counts, dtype=float), turn if given else 0.0,
+                        given, increments)  # fmt: skip
         return increments
+
+
+@njit(cache=True)
+def read_counts(wheel_angles: np.ndarray, state: np.ndarray, counts: np.ndarray) -> None:
+    """Write ``floor((a - a_0) / delta)`` of wheel angles ``a`` [rad] into ``counts``.
+
+    Args:
+        wheel_angles: Left and right wheel angles [rad]. Shape (2,).
+        state: :attr:`WheelOdometry.state`. Shape (10,).
+        counts: Output. Shape (2,).
+    """
+    for side in range(2):
+        counts[side] = np.floor((wheel_angles[side] - state[5 + side]) / state[7])
+
+
+@njit(cache=True)
+def odometry_update(
+    state: np.ndarray, counts: np.ndarray, turn: float, given: bool, increments: np.ndarray
+) -> None:
+    """Advance :attr:`WheelOdometry.state` to new counts along one arc (module docstring).
+
+    Args:
+        state: The odometry's state, updated in place. Shape (10,).
+        counts: Left and right counts now. Shape (2,).
+        turn: The heading change [rad] from another sensor, used if ``given``.
+        given: Whether ``turn`` holds; otherwise ``Delta theta = (s_r - s_l) / b``.
+        increments: Output: the count increments. Shape (2,).
+    """
+    for side in range(2):
+        increments[side] = counts[side] - state[3 + side]
+        state[3 + side] = counts[side]
+    step = state[8]
+    left, right = increments[0] * step, increments[1] * step
+    distance = 0.5 * (left + right)
+    if not given:
+        turn = (right - left) / state[9]
+    if turn == 0.0:
+        forward, sideways = distance, 0.0
+    else:
+        forward = distance * math.sin(turn) / turn
+        sideways = distance * (1.0 - math.cos(turn)) / turn
+    x, y, theta = state[0], state[1], state[2]
+    c, s = math.cos(theta), math.sin(theta)
+    state[0] = x + c * forward - s * sideways
+    state[1] = y + s * forward + c * sideways
+    state[2] = theta + turn

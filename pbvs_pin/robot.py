@@ -92,7 +92,7 @@ def _one_line(err: Exception) -> str:
     return " ".join(str(err).split())
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def arm_angles(q: np.ndarray, idx_q: np.ndarray, continuous: np.ndarray) -> np.ndarray:
     """Arm joint positions from a configuration; continuous joints (cos, sin) give an angle.
 
@@ -491,6 +491,15 @@ class MobileManipulator:
         """``world_T_camera``: pose of the optical frame in the world."""
         pin.framesForwardKinematics(self.model, self.data, self.check_configuration(q))
         return pin.SE3(self.data.oMf[self.camera_frame_id])
+
+    def camera_placement(self, q: np.ndarray) -> pin.SE3:
+        """:meth:`camera_pose` for a ``q`` known to be valid (the control loop's hot path).
+
+        Only the joints' placements and the camera frame's are computed; the result refers to
+        ``self.data.oMf``: valid until the next Pinocchio call on ``self.data``.
+        """
+        pin.forwardKinematics(self.model, self.data, q)
+        return pin.updateFramePlacement(self.model, self.data, self.camera_frame_id)
 
     def camera_jacobian(self, q: npt.ArrayLike) -> np.ndarray:
         """Camera twist in the camera frame from the actuated velocities.

@@ -7,6 +7,8 @@ is fixed in the world).
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -97,6 +99,36 @@ def test_project_jacobian_matches_finite_differences(seed):
         ]
     )
     np.testing.assert_allclose(camera.project_jacobian(point), fd, rtol=1e-6, atol=1e-4)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_project_world_matches_the_pinhole_of_each_point(seed):
+    """Many points at once, against the reference's point-by-point projection."""
+    rng = np.random.default_rng([24, seed])
+    camera = CameraIntrinsics(focal_px=rng.uniform(300, 900))
+    pose = _random_pose(rng)
+    points = np.array([_point_in_front(pose, rng) for _ in range(4)])
+    image, depths = camera.project_world(pose, points)
+    expected = np.array([project_world(camera.focal_px, pose, p) for p in points])
+    np.testing.assert_allclose(image, expected, rtol=1e-12)
+    np.testing.assert_allclose(depths, [pose.actInv(p)[2] for p in points], rtol=1e-12)
+
+
+def test_project_world_divides_by_the_smallest_depth_given_and_never_warns():
+    """``min_depth`` replaces a smaller depth as divisor (the depth itself is returned); a
+    point in the camera's plane gives infinite coordinates and a NaN depth NaN, silently."""
+    camera = CameraIntrinsics(focal_px=500.0)
+    in_camera = np.array([[0.1, -0.2, 0.5], [0.1, -0.2, 1e-4], [0.1, 0.0, 0.0], [0.1, 0.1, np.nan]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        image, depths = camera.project_world(pin.SE3.Identity(), in_camera, min_depth=1e-3)
+        plain, _ = camera.project_world(pin.SE3.Identity(), in_camera)
+    np.testing.assert_array_equal(depths, in_camera[:, 2])
+    np.testing.assert_allclose(image[0], pinhole(500.0, in_camera[0]), rtol=1e-14)
+    np.testing.assert_allclose(image[1], [-500.0 * 0.1 / 1e-3, 500.0 * 0.2 / 1e-3], rtol=1e-14)
+    np.testing.assert_allclose(plain[1], [-500.0 * 0.1 / 1e-4, 500.0 * 0.2 / 1e-4], rtol=1e-14)
+    assert plain[2, 0] == -np.inf and np.isnan(plain[2, 1])  # -f x / 0 and -f 0 / 0
+    assert np.isnan(image[3]).all() and np.isnan(plain[3]).all()
 
 
 def test_depth_from_apparent_diameter():

@@ -7,12 +7,22 @@ the quantisation bounds (one count) and the noise standard deviations that were 
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pytest
+from conftest import rot_z
 
+from pbvs_pin.base import DifferentialDrive
+from pbvs_pin.odometry import WheelOdometry
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.obstacles import BoxObstacle, Laser
 from pbvs_pin.sim.scenario import load_scenario
-from pbvs_pin.sim.sensing import Sensing, planar_pose
+from pbvs_pin.sim.sensing import (
+    ENCODER_STREAM,
+    GYRO_STREAM,
+    NOISE_BLOCK,
+    Sensing,
+    planar_pose,
+)
 from pbvs_pin.sim.setup import build
 
 CONTROL_DT = 0.01
@@ -157,6 +167,62 @@ def test_encoder_velocity_noise_has_the_standard_deviation_set(tau):
     # u = r (w_l + w_r) / 2 of two independent wheel readings
     u_std = drive.wheel_radius * sigma_wheel * shrink / np.sqrt(2)
     assert np.std(readings[:, 0]) == pytest.approx(u_std, rel=0.05)
+
+
+def test_noise_follows_its_streams_draw_by_draw_across_blocks():
+    """Drawn in blocks, the noise is still each stream's draws in order, one set per reading:
+    at rest without a filter, an arm reading is ``sigma`` times the encoder stream's draw, the
+    platform's ``u`` that of the two wheels' draws, and its yaw rate the gyro's bias plus
+    ``sigma`` times the gyro stream's draw."""
+    sigma_arm, sigma_wheel = 0.05, 0.2
+    values = {"sensing.velocity_filter": 0.0, "sensing.joint_velocity_noise": sigma_arm,
+              "sensing.wheel_velocity_noise": sigma_wheel}  # fmt: skip
+    steps = NOISE_BLOCK + 50
+    setup, _, rows = _drive("pinocchio", lambda t: np.zeros(5), steps * CONTROL_DT, **values)
+    spec, n_arm = setup.scenario.sensing, setup.model.n_arm
+    seed = setup.scenario.simulation.seed
+    encoders = np.random.default_rng([seed, ENCODER_STREAM]).standard_normal((steps - 1, n_arm + 2))
+    gyro = np.random.default_rng([seed, GYRO_STREAM]).standard_normal(steps - 1)
+    readings = rows["v_measured"][1:]
+    np.testing.assert_allclose(readings[:, 2:], sigma_arm * encoders[:, :n_arm], rtol=1e-12)
+    radius = setup.model.base.wheel_radius
+    u = 0.5 * radius * sigma_wheel * (encoders[:, n_arm] + encoders[:, n_arm + 1])
+    np.testing.assert_allclose(readings[:, 0], u, rtol=1e-12)
+    np.testing.assert_allclose(
+        readings[:, 1], spec.gyro_bias + spec.gyro_noise * gyro, rtol=1e-9, atol=1e-12
+    )
+
+
+@pytest.mark.parametrize("gyro", [False, True])
+def test_odometry_moves_along_the_arc_pinocchio_integrates(gyro):
+    """Counts for a constant-curvature step (or a turn from a gyro) move the pose by the
+    exponential of the planar twist ``[s, 0, 0, 0, 0, dtheta]`` (Pinocchio's ``exp6``)."""
+    drive = DifferentialDrive(wheel_radius=0.11, track=0.4, max_wheel_speed=5.0, track_factor=1.5)
+    start = np.array([0.3, -0.2, 0.7])
+    odometry = WheelOdometry(drive, 4096, start, [0.5, -1.0])
+    counts = odometry.read_counts([0.5 + 2.0, -1.0 + 3.0])  # 2 rad left, 3 rad right
+    np.testing.assert_array_equal(counts, np.floor(np.array([2.0, 3.0]) / odometry.resolution))
+    left, right = drive.wheel_radius * odometry.resolution * counts
+    distance = 0.5 * (left + right)
+    turn = 0.3 if gyro else (right - left) / drive.effective_track
+    increments = odometry.update(counts, turn if gyro else None)
+    np.testing.assert_array_equal(increments, counts)
+    np.testing.assert_array_equal(odometry.counts, counts)
+    moved = pin.SE3(rot_z(start[2]), np.array([*start[:2], 0.0])) * pin.exp6(
+        pin.Motion(np.array([distance, 0.0, 0.0]), np.array([0.0, 0.0, turn]))
+    )
+    x, y, theta = odometry.pose
+    np.testing.assert_allclose([x, y], moved.translation[:2], atol=1e-12)
+    assert theta == pytest.approx(start[2] + turn, abs=1e-12)
+    np.testing.assert_allclose(moved.rotation, rot_z(theta), atol=1e-12)
+
+
+def test_camera_placement_is_the_camera_pose():
+    setup = build(load_scenario("experiment1"))
+    q = setup.model.integrate(setup.plant.q, np.full(setup.model.n, 0.3), 1.0)
+    expected = setup.model.camera_pose(q)
+    placement = setup.model.camera_placement(q)
+    np.testing.assert_array_equal(placement.homogeneous, expected.homogeneous)
 
 
 def _short(**values):

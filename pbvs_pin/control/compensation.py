@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from pbvs_pin.servo import ServoModel
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def compensation_law(
     mass_upper: np.ndarray,
     bias: np.ndarray,

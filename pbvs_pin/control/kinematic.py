@@ -47,7 +47,7 @@ ROUNDOFF_FLOOR = 1e-12
 """Smallest eigenvalue of the regularised ``J W^-1 J^T``, relative to its trace."""
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def storage_function(error_units: np.ndarray, k: np.ndarray) -> float:
     r"""``V1`` of eq. (7) in closed form.
 
@@ -65,7 +65,7 @@ def storage_function(error_units: np.ndarray, k: np.ndarray) -> float:
     return total
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def saturate(u: np.ndarray, limits: np.ndarray) -> tuple[np.ndarray, float]:
     """Scale ``u`` uniformly so that ``|u_i| <= limits_i``; return it and the factor."""
     ratio = 0.0
@@ -76,7 +76,7 @@ def saturate(u: np.ndarray, limits: np.ndarray) -> tuple[np.ndarray, float]:
     return u / ratio, 1.0 / ratio
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def damped_pseudo_inverse(
     jacobian: np.ndarray, weight_inverse: np.ndarray, threshold: float, max_damping: float
 ) -> tuple[np.ndarray, float, bool]:
@@ -111,10 +111,11 @@ def damped_pseudo_inverse(
         mu2 = floor - min(smallest, 0.0)
     if mu2 > 0.0:
         gram = gram + mu2 * np.eye(gram.shape[0])
-    return cholesky_solve(gram, right.T.copy()).T.copy(), sigma_min, damped
+    cholesky_solve(gram, right.T)  # right becomes J# in place
+    return right, sigma_min, damped
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def passivity_law(
     error: np.ndarray,
     jacobian: np.ndarray,
@@ -179,7 +180,11 @@ def passivity_law(
     if safety.camera_period > 0.0:  # loop-gain safety net
         largest = 1.0
         if not pseudoinverse_feedback:
-            largest = -smallest_eigenvalue(-matmul(jacobian, jacobian.T))
+            negated = matmul(jacobian, jacobian.T)
+            for a in range(r):
+                for b in range(r):
+                    negated[a, b] = -negated[a, b]
+            largest = -smallest_eigenvalue(negated)
         gain_factor, loop_gain = loop_gain_factor(
             largest, np.max(k), safety.camera_period, safety.loop_gain_margin
         )

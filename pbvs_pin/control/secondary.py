@@ -18,13 +18,13 @@ from numba import njit
 from pbvs_pin.exceptions import GainError
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def posture_term(arm: np.ndarray, target: np.ndarray, gain: float) -> np.ndarray:
     r"""Eq. (19): ``f_i = k_Lambda (theta_id - theta_i)``. Shape (n_arm,)."""
     return gain * (target - arm)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def joint_limit_term(
     arm: np.ndarray, lower: np.ndarray, upper: np.ndarray, margin: float, gain: float
 ) -> np.ndarray:
@@ -34,7 +34,7 @@ def joint_limit_term(
     return -gain * (above + below)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def obstacle_force(distance: float, angle: float, k_u: float, k_w: float, d0: float) -> np.ndarray:
     r"""Fictitious force of eqs. (17)-(18) before the impedance, ``[F_u, F_w]``.
 
@@ -51,7 +51,7 @@ def obstacle_force(distance: float, angle: float, k_u: float, k_w: float, d0: fl
     return force
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def impedance_step(
     velocity: np.ndarray, force: np.ndarray, mass: float, damping: float, dt: float
 ) -> np.ndarray:

@@ -10,6 +10,11 @@ objectives once, in the buffers named by :mod:`pbvs_pin.control.layout`; then ea
 its Pinocchio calls and one call of :func:`fused_control_step`. A scenario with the IBVS
 baseline or a user-defined objective uses the modular classes.
 
+The equations' kernels are declared ``inline="always"``: Numba compiles their bodies into the
+fused step, so that no call and no tuple of returned arrays passes between them (on the
+reference robot the compiled call went from about 4.5 to 3.9 us; the modular classes call
+the same kernels, compiled on their own).
+
 Numba keys its on-disk cache on each compiled function's own file, so the cached
 :func:`fused_control_step` does not notice an edit of a kernel it composes from another module.
 After editing a kernel, delete the caches (``find pbvs_pin -name '*.nb[ci]' -delete``).

@@ -100,7 +100,7 @@ class SafetyOutput(NamedTuple):
     """``beta``, how much of the roll was removed from the null space [1]."""
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def upright_angle(rotation: np.ndarray) -> float:
     r"""The image's upright angle ``phi = atan2(c_x, -c_y)``, ``c = wRc^T e_z`` [rad].
 
@@ -113,7 +113,7 @@ def upright_angle(rotation: np.ndarray) -> float:
     return np.arctan2(rotation[2, 0], -rotation[2, 1])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def upright_row(rotation: np.ndarray, camera_jacobian: np.ndarray) -> np.ndarray:
     r"""``[phi, j_phi]``: the upright angle and its rate per actuated velocity.
 
@@ -142,7 +142,7 @@ def upright_row(rotation: np.ndarray, camera_jacobian: np.ndarray) -> np.ndarray
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def upright_null_space(
     null_space: np.ndarray,
     pinv: np.ndarray,
@@ -196,7 +196,7 @@ def upright_null_space(
     return null_space - (weight * rate / sigma2) * b, sigma, weight
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def loop_gain_factor(
     largest_eigenvalue: float, k_max: float, period: float, margin: float
 ) -> tuple[float, float]:

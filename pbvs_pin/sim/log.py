@@ -37,7 +37,9 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 import numpy as np
 
 from pbvs_pin.base import DifferentialDrive
+from pbvs_pin.camera import MIN_DEPTH
 from pbvs_pin.exceptions import OutputError
+from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.manipulability import arm_jacobian, manipulability
 from pbvs_pin.sim.obstacles import clearance
 from pbvs_pin.sim.scenario import obstacle_table
@@ -353,12 +355,16 @@ def _derived_in_one_pass(
     arm_jacobians = []
     for i, (t, q) in enumerate(zip(times, configurations, strict=True)):
         centres = target.centres(t)
-        image, depths = robot.camera.project_world(robot.camera_pose(q), centres)
-        if np.all(depths > 1e-3):
+        pose = robot.camera_pose(q)
+        image, depths = robot.camera.project_world(pose, centres)
+        if np.all(depths > MIN_DEPTH):  # FeatureSet.jacobians of the same image, posed once
             out["xi_true"][i] = image.reshape(-1)[setup.features.rows]
             _, out["jacobian_true"][i], out["object_jacobian_true"][i] = (
-                setup.features.jacobians(robot, q, *centres)
-            )
+                setup.features.jacobians_from_measurement(
+                    robot.camera, ImageMeasurement(image, depths), robot.camera_jacobian(q),
+                    pose.rotation.T,
+                )
+            )  # fmt: skip
         out["platform_pose"][i] = planar_pose(robot, q)
         out["clearance"][i] = clearance(setup.obstacles, footprint, *out["platform_pose"][i])
         out["arm"][i] = model.arm_positions(q)

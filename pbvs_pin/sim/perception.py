@@ -56,6 +56,8 @@ class Perception:
         self.lost = False
         self.used: ImageMeasurement | None = None
         self.predicting = False
+        self._world = np.zeros((0, 3))
+        """The newest measurement's points in the world, where its frame saw them [m]."""
 
     def take(self, frame: Frame) -> None:
         """Use a delivered frame: keep its measurement and update the filter."""
@@ -74,6 +76,7 @@ class Perception:
         self.frame, self.measurement = frame, measurement
         pose = setup.model.camera_pose(frame.q)
         in_camera = setup.model.camera.back_project(measurement.points, measurement.depths)
+        self._world = in_camera @ pose.rotation.T + pose.translation
         self.filter.update(pose.act(in_camera.mean(axis=0)), frame.time)
 
     def velocity(self, t: float) -> np.ndarray:
@@ -104,9 +107,6 @@ class Perception:
     def predicted(self, t: float, q: np.ndarray) -> ImageMeasurement:
         """The newest measurement brought up to ``(t, q)`` along eq. (3) (module docstring)."""
         model, frame = self.setup.model, self.frame
-        in_camera = model.camera.back_project(self.measurement.points, self.measurement.depths)
-        then = model.camera_pose(frame.q)
-        world = in_camera @ then.rotation.T + then.translation
-        world = world + self.velocity(t) * (t - frame.time)
-        image, depths = model.camera.project_world(model.camera_pose(q), world)
+        world = self._world + self.velocity(t) * (t - frame.time)
+        image, depths = model.camera.project_world(model.camera_placement(q), world)
         return ImageMeasurement(image, depths)

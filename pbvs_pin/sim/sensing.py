@@ -45,12 +45,13 @@ leaves the others' draws unchanged.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+from numba import njit
 
-from pbvs_pin.base import DifferentialDrive
-from pbvs_pin.odometry import WheelOdometry
+from pbvs_pin.base import DifferentialDrive, unicycle_twist
+from pbvs_pin.odometry import WheelOdometry, odometry_update, read_counts
 from pbvs_pin.robot import arm_angles
 
 if TYPE_CHECKING:
@@ -80,8 +81,43 @@ def planar_pose(robot: MobileManipulator, q: np.ndarray) -> np.ndarray:
     return np.array([*pose.translation[:2], np.arctan2(rotation[1, 0], rotation[0, 0])])
 
 
+NOISE_BLOCK = 256
+"""Control steps of noise drawn at once (the same numbers, in the same order, as one draw per
+step: a generator's draws concatenate)."""
+
+
+class Constants(NamedTuple):
+    """The constant floats of :func:`sensing_step`, in this order."""
+
+    joint_noise: float
+    """``sigma`` of the arm joints' velocity noise [rad/s or m/s]."""
+    wheel_noise: float
+    """``sigma`` of the wheels' velocity noise [rad/s]."""
+    filter_time: float
+    """``tau`` of the velocity filter [s] (0: no filter)."""
+    gyro_bias: float
+    """The gyro's bias [rad/s]."""
+    gyro_noise: float
+    """``sigma`` of the gyro's noise [rad/s]."""
+    wheel_radius: float
+    """Of the controller's drive model [m]."""
+    track: float
+    """Effective track of the controller's drive model [m]."""
+    n_base: float
+    """Platform velocities in ``v``."""
+    odometry: float
+    """1 with wheel odometry (a differential drive), 0 without wheels."""
+    gyro: float
+    """1 when the heading comes from the gyro."""
+    localise: float
+    """1 when the odometry gives the platform pose, 0 for perfect localisation."""
+
+
 class Sensing:
     """The robot's sensors, read at every control step (see the module docstring).
+
+    The arithmetic of a reading is one compiled call, :func:`sensing_step`; the noise is drawn
+    :data:`NOISE_BLOCK` steps at a time.
 
     Args:
         setup: The run's blocks; the plant is read, the controller's model gives the drive
@@ -102,97 +138,72 @@ class Sensing:
         self.rng = np.random.default_rng([seed, ENCODER_STREAM])
         self.laser_rng = np.random.default_rng([seed, LASER_STREAM])
         self.gyro_rng = np.random.default_rng([seed, GYRO_STREAM])
-        self.gyro = spec.heading == "gyro"
-        self.gyro_noise, self.gyro_bias = spec.gyro_noise, spec.gyro_bias
         self.exact = spec.exact
         model = self.model
         drive = model.base
-        self.drive = drive if isinstance(drive, DifferentialDrive) else None
-        prismatic = prismatic_arm_joints(model)
-        self._revolute = ~prismatic
-        self.arm_resolution = np.where(
-            prismatic, spec.arm_linear_resolution, 2.0 * np.pi / 2.0**spec.arm_encoder_bits
-        )
-        self.joint_noise, self.wheel_noise = spec.joint_velocity_noise, spec.wheel_velocity_noise
-        self.filter_time = spec.velocity_filter
+        drive = drive if isinstance(drive, DifferentialDrive) else None
         q = self.plant.q
         self.q, self.v = q.copy(), np.zeros(model.n)
         self.odometry: WheelOdometry | None = None
-        if self.drive is not None and not self.exact:
+        if drive is not None and not self.exact:
             self.odometry = WheelOdometry(
-                self.drive, spec.wheel_encoder_counts, planar_pose(model, q),
-                self.plant.wheel_angles,
-            )  # fmt: skip
-        self.perfect_localisation = spec.localisation == "perfect"
-        continuous = model.arm_continuous
-        self._plain_q = model.arm_q_indices[~continuous]  # where q holds the angle itself
-        self._plain, self._continuous = ~continuous, continuous
-        self._cos_q = model.arm_q_indices[continuous]  # (cos, sin) pairs start here
-        self._arm = self._arm_reading(q)
-        self._wheel_speeds = np.zeros(2)
-        self._yaw_rate = 0.0
-        self._n_base = model.n_base
-        self._noise_size = model.n_arm + (2 if self.odometry is not None else 0)
+                drive, spec.wheel_encoder_counts, planar_pose(model, q), self.plant.wheel_angles
+            )
+        odometry = self.odometry is not None
+        self._gyro = odometry and spec.heading == "gyro"
+        self._constants = np.array(
+            Constants(
+                joint_noise=spec.joint_velocity_noise, wheel_noise=spec.wheel_velocity_noise,
+                filter_time=spec.velocity_filter, gyro_bias=spec.gyro_bias,
+                gyro_noise=spec.gyro_noise,
+                wheel_radius=drive.wheel_radius if drive else 0.0,
+                track=drive.effective_track if drive else 0.0, n_base=model.n_base,
+                odometry=odometry, gyro=self._gyro,
+                localise=odometry and spec.localisation != "perfect",
+            ),
+            dtype=float,
+        )  # fmt: skip
+        prismatic = prismatic_arm_joints(model)
+        resolution = 2.0 * np.pi / 2.0**spec.arm_encoder_bits
+        self._arm = np.where(prismatic, spec.arm_linear_resolution, resolution)
+        self._joints = np.concatenate(
+            [model.arm_q_indices, model.arm_continuous, prismatic]
+        ).astype(np.int64)
+        n_arm = model.n_arm
+        # the filter's memory: arm readings, v, wheel speeds, yaw rate
+        self._state = np.zeros(n_arm + model.n + 3)
+        self._state[:n_arm] = encoder_positions(q, self._joints, self._arm)
+        self._odometry_state = self.odometry.state if odometry else np.zeros(10)
+        self._noise_size = n_arm + (2 if odometry else 0)
+        self._noise = np.zeros((0, self._noise_size))
+        self._gyro_draws = np.zeros(NOISE_BLOCK)
+        self._draw = 0
         self._time: float | None = None
         self._laser_frame = "laser_link" if self.robot.model.existFrame("laser_link") else None
 
-    def _arm_reading(self, q: np.ndarray) -> np.ndarray:
-        """Absolute encoder positions of the arm joints [rad or m]. Shape (n_arm,)."""
-        model, resolution = self.model, self.arm_resolution
-        angles = arm_angles(q, model.arm_q_indices, model.arm_continuous)
-        return np.round(angles / resolution) * resolution
-
     def read(self, t: float) -> None:
-        """Read every encoder at time ``t`` [s]; update :attr:`q` and :attr:`v`."""
+        """Read every encoder at time ``t`` [s]; update :attr:`q` and :attr:`v` (new arrays)."""
         plant = self.plant
-        true_q = plant.q
         if self.exact:
-            self.q, self.v = true_q, plant.v
+            self.q, self.v = plant.q, plant.v
             return
-        arm = self._arm_reading(true_q)
-        v = self.v.copy()
-        n_base, odometry = self._n_base, self.odometry
         period = 0.0 if self._time is None else t - self._time
         self._time = t
+        draw = self._draw
         if period > 0:
-            change = arm - self._arm
-            change[self._revolute] = (change[self._revolute] + np.pi) % (2 * np.pi) - np.pi
-            noise = self.rng.standard_normal(self._noise_size)  # arm joints, then wheels
-            gain = self._filter_gain(period)
-            raw = change / period + self.joint_noise * noise[: arm.size]
-            v[n_base:] += gain * (raw - v[n_base:])
-            if odometry is not None:
-                yaw_rate = self._gyro_reading() if self.gyro else None
-                turn = None if yaw_rate is None else yaw_rate * period
-                increments = odometry.update(odometry.read_counts(plant.wheel_angles), turn)
-                raw = increments * (odometry.resolution / period) + self.wheel_noise * noise[-2:]
-                self._wheel_speeds += gain * (raw - self._wheel_speeds)
-                v[:n_base] = self.drive.platform_velocity(self._wheel_speeds)
-                if yaw_rate is not None:
-                    self._yaw_rate += gain * (yaw_rate - self._yaw_rate)
-                    v[n_base - 1] = self._yaw_rate
-        if odometry is None:
-            v[:n_base] = plant.v[:n_base]
-        self._arm = arm
-        q = true_q.copy()
-        if odometry is not None and not self.perfect_localisation:
-            x, y, theta = odometry.pose
-            q[:4] = x, y, math.cos(theta), math.sin(theta)
-        q[self._plain_q] = arm[self._plain]
-        q[self._cos_q] = np.cos(arm[self._continuous])
-        q[self._cos_q + 1] = np.sin(arm[self._continuous])
+            if draw == self._noise.shape[0]:
+                self._noise = self.rng.standard_normal((NOISE_BLOCK, self._noise_size))
+                if self._gyro:
+                    self._gyro_draws = self.gyro_rng.standard_normal(NOISE_BLOCK)
+                draw = 0
+            self._draw = draw + 1
+        true_q = plant.q
+        q, v = np.empty(true_q.shape[0]), np.empty(self.v.shape[0])
+        sensing_step(
+            true_q, plant.v, plant.wheel_angles, period, self._noise, self._gyro_draws, draw,
+            self._joints, self._arm, self._constants, self._state, self._odometry_state, q, v,
+        )  # fmt: skip
         self.q, self.v = q, v
-
-    def _gyro_reading(self) -> float:
-        """The gyro: the platform's true yaw rate [rad/s] with its bias and noise."""
-        true_rate = float(self.plant.v[self._n_base - 1])
-        return true_rate + self.gyro_bias + self.gyro_noise * self.gyro_rng.standard_normal()
-
-    def _filter_gain(self, period: float) -> float:
-        """``1 - exp(-T / tau)`` of the velocity filter (1 without a filter)."""
-        if self.filter_time == 0:
-            return 1.0
-        return -math.expm1(-period / self.filter_time)
 
     def laser_reading(self) -> tuple[float, float]:
         """``(d, alpha)`` of a scan from the true laser frame (or the base), with its noise."""
@@ -202,3 +213,115 @@ class Sensing:
         x, y = pose.translation[:2]
         ranges = self.laser.scan(self.obstacles, x, y, yaw, self.laser_rng)
         return self.laser.nearest(ranges)
+
+
+@njit(cache=True, inline="always")
+def _constants(block: np.ndarray) -> Constants:
+    """:class:`Constants` from their array. Shape (11,)."""
+    return Constants(
+        block[0], block[1], block[2], block[3], block[4], block[5], block[6], block[7],
+        block[8], block[9], block[10],
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def encoder_positions(q: np.ndarray, joints: np.ndarray, resolution: np.ndarray) -> np.ndarray:
+    """Absolute encoder positions ``round(theta / delta) delta`` of the arm joints [rad or m].
+
+    Args:
+        q: Configuration. Shape (nq,).
+        joints: Each arm joint's index in ``q``, whether it is continuous (cos, sin), whether
+            it is prismatic. Shape (3 n_arm,).
+        resolution: ``delta`` of each joint [rad or m]. Shape (n_arm,).
+
+    Returns:
+        Shape (n_arm,).
+    """
+    n_arm = resolution.shape[0]
+    angles = arm_angles(q, joints[:n_arm], joints[n_arm : 2 * n_arm])
+    return np.round(angles / resolution) * resolution
+
+
+@njit(cache=True)
+def sensing_step(
+    true_q: np.ndarray,
+    true_v: np.ndarray,
+    wheel_angles: np.ndarray,
+    period: float,
+    noise: np.ndarray,
+    gyro_draws: np.ndarray,
+    draw: int,
+    joints: np.ndarray,
+    resolution: np.ndarray,
+    constants: np.ndarray,
+    state: np.ndarray,
+    odometry: np.ndarray,
+    q: np.ndarray,
+    v: np.ndarray,
+) -> None:
+    """One reading of the encoders, the gyro and the odometry (module docstring).
+
+    Args:
+        true_q: The plant's configuration. Shape (nq,).
+        true_v: The plant's actuated velocity. Shape (n,).
+        wheel_angles: The plant's left and right wheel angles [rad]. Shape (2,).
+        period: Time since the last reading [s]; 0 at the first (no velocity update).
+        noise: Standard normal draws, a row per step: arm joints, then wheels.
+            Shape (steps, n_arm [+ 2]).
+        gyro_draws: Standard normal draws of the gyro, one per step. Shape (steps,).
+        draw: The row (and gyro draw) of this step.
+        joints: As :func:`encoder_positions`. Shape (3 n_arm,).
+        resolution: Encoder resolution of each arm joint [rad or m]. Shape (n_arm,).
+        constants: :class:`Constants`. Shape (11,).
+        state: ``[arm readings, filtered v, filtered wheel speeds, filtered yaw rate]``,
+            updated in place. Shape (n_arm + n + 3,).
+        odometry: :attr:`pbvs_pin.odometry.WheelOdometry.state` (unused without wheels),
+            updated in place. Shape (10,).
+        q: Output: the measured configuration. Shape (nq,).
+        v: Output: the measured actuated velocity. Shape (n,).
+    """
+    c = _constants(constants)
+    n_arm, n, n_base = resolution.shape[0], v.shape[0], int(c.n_base)
+    previous = state[:n_arm]
+    filtered = state[n_arm : n_arm + n]
+    wheel_speeds = state[n_arm + n : n_arm + n + 2]
+    arm = encoder_positions(true_q, joints, resolution)
+    if period > 0:
+        gain = 1.0 if c.filter_time == 0 else -math.expm1(-period / c.filter_time)
+        for i in range(n_arm):
+            change = arm[i] - previous[i]
+            if joints[2 * n_arm + i] == 0:  # revolute: the shortest way round
+                change = (change + np.pi) % (2 * np.pi) - np.pi
+            raw = change / period + c.joint_noise * noise[draw, i]
+            filtered[n_base + i] += gain * (raw - filtered[n_base + i])
+        if c.odometry:
+            yaw_rate = true_v[n_base - 1] + c.gyro_bias + c.gyro_noise * gyro_draws[draw]
+            counts, increments = np.empty(2), np.empty(2)
+            read_counts(wheel_angles, odometry, counts)
+            odometry_update(odometry, counts, yaw_rate * period, c.gyro != 0, increments)
+            for side in range(2):
+                raw = (
+                    increments[side] * (odometry[7] / period)
+                    + c.wheel_noise * noise[draw, n_arm + side]
+                )
+                wheel_speeds[side] += gain * (raw - wheel_speeds[side])
+            filtered[0], filtered[n_base - 1] = unicycle_twist(
+                c.wheel_radius, c.track, wheel_speeds[0], wheel_speeds[1]
+            )
+            if c.gyro:
+                state[-1] += gain * (yaw_rate - state[-1])
+                filtered[n_base - 1] = state[-1]
+    if not c.odometry:
+        filtered[:n_base] = true_v[:n_base]
+    previous[:] = arm
+    v[:] = filtered
+    q[:] = true_q
+    if c.localise:
+        theta = odometry[2]
+        q[0], q[1], q[2], q[3] = odometry[0], odometry[1], math.cos(theta), math.sin(theta)
+    for i in range(n_arm):
+        j = joints[i]
+        if joints[n_arm + i]:
+            q[j], q[j + 1] = math.cos(arm[i]), math.sin(arm[i])
+        else:
+            q[j] = arm[i]
