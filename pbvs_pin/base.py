@@ -120,9 +120,9 @@ class DifferentialDrive(BaseAdapter):
         return np.array([u_max, 2.0 * u_max / self.effective_track])
 
     def wheel_speeds(self, u: float, omega: float) -> tuple[float, float]:
-        """Left and right wheel angular speeds [rad/s] for a platform command."""
-        half = 0.5 * omega * self.effective_track
-        return (u - half) / self.wheel_radius, (u + half) / self.wheel_radius
+        """Left and right wheel angular speeds [rad/s] for a command (:meth:`wheel_map`)."""
+        left, right = self.wheel_map() @ np.array([u, 0.0, omega])
+        return float(left), float(right)
 
     def wheel_map(self) -> np.ndarray:
         r"""Left and right wheel speeds [rad/s] from the planar joint's ``[vx, vy, wz]``.

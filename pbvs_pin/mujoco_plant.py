@@ -320,11 +320,8 @@ class MujocoPlant:
         self._full_mass = np.zeros((model.nv, model.nv))
         wheels = [model.joint(name) for name in self.axle.wheel_joints]
         left = model.body_pos[[j.bodyid[0] for j in wheels], 1] > 0.0
-        half_track = 0.5 * drive.effective_track
-        self._wheel_map = (
-            np.column_stack([np.ones(len(wheels)), np.where(left, -half_track, half_track)])
-            / drive.wheel_radius
-        )
+        # each wheel's row of the drive's map from [u, omega] (its side's)
+        self._wheel_map = drive.wheel_map()[np.where(left, 0, 1)][:, [0, 2]].copy()
         self._wheel_dof = np.array([j.dofadr[0] for j in wheels])
         self._wheel_qpos = np.array([j.qposadr[0] for j in wheels])
         sides = np.array([left, ~left], dtype=float)  # rows: left, right

@@ -9,6 +9,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import random_configuration
 
 from pbvs_pin import load_robot
 from pbvs_pin.exceptions import GainError
@@ -35,13 +36,7 @@ def _camera_jacobian(robot, q):
 
 def _random_configurations(robot, count=4, seed=3):
     rng = np.random.default_rng(seed)
-    lower, upper = robot.arm_position_limits()
-    lower, upper = np.maximum(lower, -np.pi), np.minimum(upper, np.pi)
-    for _ in range(count):
-        q = robot.with_arm_positions(robot.neutral(), rng.uniform(lower, upper))
-        yaw = rng.uniform(-np.pi, np.pi)
-        q[:4] = *rng.uniform(-2, 2, 2), np.cos(yaw), np.sin(yaw)
-        yield q
+    return [random_configuration(robot, rng) for _ in range(count)]
 
 
 @pytest.mark.parametrize("name", ["pioneer_cyton", "pioneer_ur5"])
