@@ -1,0 +1,180 @@
+"""The README's measured numbers outside its generated blocks, each recomputed from a fresh run.
+
+The generated blocks (the results and the MuJoCo tables) are checked by ``test_experiments.py``
+and ``test_mujoco_acceptance.py``. The figures in the README's prose are checked here: each
+test runs the configuration its sentence names, formats the figure as the README writes it and
+looks for the sentence. When one fails, the behaviour changed: measure again and update the
+sentence (or the conclusion drawn from it).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from conftest import REPO_ROOT
+from test_prediction import ALL_FAULTS
+
+from pbvs_pin.sim.loop import simulate
+from pbvs_pin.sim.metrics import summarize
+from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.sim.setup import build
+
+README = " ".join((REPO_ROOT / "README.md").read_text().split())
+"""The README with every run of whitespace (line breaks included) made one space."""
+
+NET_OFF = 1e6
+"""A loop-gain margin the net never reaches: the net switched off."""
+
+IDEALISED = {
+    "sensing.exact": True, "camera.latency": 0.0, "laser.range_noise": 0.0,
+    "laser.range_resolution": 0.0, "estimator.predict": False,
+}  # fmt: skip
+"""The old idealisation: exact state, no latency, an exact laser, no prediction."""
+
+EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
+
+
+@functools.cache
+def _run(experiment: str, values: tuple) -> tuple[dict, dict[str, np.ndarray]]:
+    log = simulate(load_scenario(experiment).with_values(**dict(values)))
+    t = log["t"]
+    final = t >= t[-1] - 5.0
+    n_arm = len(log.meta["posture_target"])
+    figures = {
+        "arm_speed_final_window": float(np.max(np.abs(log["v"][final][:, -n_arm:]))),
+        "upright_min_deg": float(np.degrees(np.nanmin(log["upright_angle"]))),
+        "gain_limited": float(np.mean(log["gain_limited"])),
+        "largest_gain": float(np.nanmax(log["loop_gain"])),
+    }
+    return summarize(log), figures
+
+
+def run(experiment: str, **values: object) -> tuple[dict, dict[str, float]]:
+    """The run's summary and a few figures of its log, computed once per configuration."""
+    return _run(experiment, tuple(sorted(values.items())))
+
+
+def stated(sentence: str) -> None:
+    assert sentence in README, f"the README no longer says {sentence!r}: measure again"
+
+
+def test_the_reference_cameras_home_height():
+    setup = build(load_scenario("experiment1"))
+    height = setup.robot.camera_pose(setup.plant.q).translation[2]
+    assert height < 0.5  # below the band: the sentence's point
+    stated(f"the Cyton's camera gets to {height:.2f} m high")
+
+
+def test_the_four_faults_are_the_tested_ones():
+    stated(
+        f"four faults together: {ALL_FAULTS['camera.latency'] * 1e3:.0f} ms latency, "
+        f"{ALL_FAULTS['camera.noise_px']:.0f} px noise, "
+        f"{ALL_FAULTS['camera.drop_probability'] * 100:.0f} % of the frames dropped and a "
+        f"{ALL_FAULTS['camera.occlusion_duration']:.0f} s occlusion"
+    )
+
+
+def test_the_old_idealisation():
+    errors = [run(name, **IDEALISED)[0]["max_abs_error_final_window_px"] for name in EXPERIMENTS]
+    stated(
+        f"the reference robot's largest feature errors over the last 5 s are {errors[0]:.2f}, "
+        f"{errors[1]:.2f}, {errors[2]:.2f} and {errors[3]:.3f} px in Experiments 1-4"
+    )
+
+
+def test_feature_scale_80():
+    unprotected, figures = run(
+        "experiment1",
+        **{
+            "controller.feature_scale": 80.0, "controller.loop_gain_margin": NET_OFF,
+            "estimator.predict": False,
+        },
+    )  # fmt: skip
+    stated(
+        f"{unprotected['max_abs_error_final_window_px']:.0f} px over the last 5 s, "
+        f"{unprotected['oscillation_rms_px']:.0f} px RMS above 0.5 Hz, arm joints at up to "
+        f"{figures['arm_speed_final_window']:.2f} rad/s"
+    )
+    held, held_figures = run("experiment1", **{"controller.feature_scale": 80.0})
+    stated(
+        f"80 px holds ({held['max_abs_error_final_window_px']:.2f} px), but the net cuts the "
+        f"gain in {held_figures['gain_limited'] * 100:.1f} % of the samples"
+    )
+    assert run("experiment1")[1]["gain_limited"] == 0.0  # "with 150 px it never acts"
+
+
+def test_the_image_rolls_without_the_upright_constraint():
+    paper_posture = {"controller.upright": False, "secondary.posture_target": "max_manipulability"}
+    panda, panda_figures = run("experiment4", **{"robot.name": "pioneer_panda"}, **paper_posture)
+    assert panda["target_lost_samples"] > 0
+    stated(
+        f"rolled the Panda's image by {abs(panda_figures['upright_min_deg']):.0f} deg, and the "
+        "target was lost"
+    )
+    tiago, tiago_figures = run("experiment4", **{"robot.name": "tiago"}, **paper_posture)
+    upright = run(
+        "experiment4", **{"robot.name": "tiago", "secondary.posture_target": "max_manipulability"}
+    )[0]
+    assert tiago["target_lost_samples"] == 0
+    stated(
+        f"TIAGo's rolled by {abs(tiago_figures['upright_min_deg']):.0f} deg and ended "
+        f"{tiago['max_abs_error_final_window_px']:.1f} px off "
+        f"({upright['max_abs_error_final_window_px']:.1f} px with it)"
+    )
+
+
+def test_the_loop_gain_net():
+    largest = [run(name)[1]["largest_gain"] for name in EXPERIMENTS]
+    stated(
+        f"largest gain per sample {largest[0]:.2f}, {largest[1]:.2f}, {largest[2]:.2f} and "
+        f"{largest[3]:.2f} in Experiments 1-4"
+    )
+    acting = [run(name, **{"estimator.predict": False})[1]["gain_limited"] for name in EXPERIMENTS]
+    assert len({f"{fraction * 100:.1f}" for fraction in acting[:3]}) == 1
+    stated(
+        f"it acted in {acting[0] * 100:.1f} % of the samples of Experiments 1-3 and "
+        f"{acting[3] * 100:.0f} % of Experiment 4's"
+    )
+    without = run(
+        "experiment2", **{"controller.loop_gain_margin": NET_OFF, "estimator.predict": False}
+    )[0]
+    stated(f"oscillated at {without['oscillation_rms_px']:.1f} px RMS above 0.5 Hz")
+
+
+def test_the_posture_target():
+    def final(robot: str, target: str) -> float:
+        values = {"robot.name": robot, "secondary.posture_target": target}
+        return run("experiment4", **values)[0]["max_abs_error_final_window_px"]
+
+    stated(
+        f"xArm7 Experiment 4 ended up to {final('pioneer_xarm7', 'max_manipulability'):.1f} px "
+        f"off over the last 5 s and TIAGo's {final('tiago', 'max_manipulability'):.1f} px, "
+        f"against {final('pioneer_xarm7', 'home'):.2f} and {final('tiago', 'home'):.2f} px "
+        "with the home"
+    )
+
+
+def test_the_servos_leave_no_oscillation():
+    second, third = (run(name)[0]["oscillation_rms_px"] for name in EXPERIMENTS[1:3])
+    stated(f"now {second:.2f} and {third:.2f} px RMS")
+
+
+def test_prediction_on_the_mujoco_plant():
+    def summary(robot: str, experiment: str, predict: bool) -> dict:
+        values = {"robot.name": robot, "plant.engine": "mujoco", "estimator.predict": predict}
+        return run(experiment, **values)[0]
+
+    cyton, tiago = (
+        [summary(robot, "experiment2", p)["oscillation_rms_px"] for p in (False, True)]
+        for robot in ("pioneer_cyton", "tiago")
+    )
+    ur5 = [
+        summary("pioneer_ur5", "experiment4", p)["max_abs_error_final_window_px"]
+        for p in (False, True)
+    ]
+    stated(
+        f"Experiment 2's oscillation above 0.5 Hz {cyton[0]:.2f} and {cyton[1]:.2f} px RMS "
+        f"(the report flags 3 px), TIAGo's {tiago[0]:.2f} and {tiago[1]:.2f} px; `pioneer_ur5` "
+        f"Experiment 4 ended up to {ur5[0]:.2f} and {ur5[1]:.2f} px off over the last 5 s"
+    )
