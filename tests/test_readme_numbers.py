@@ -13,12 +13,16 @@ import functools
 
 import numpy as np
 from conftest import REPO_ROOT
+from test_any_robot import UNSHIPPED_ARMS
+from test_mujoco_plant import _mean_body_velocity, _plant
 from test_prediction import ALL_FAULTS
 
+from pbvs_pin import load_robot
+from pbvs_pin.catalogue import ROBOT_NAMES
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario
-from pbvs_pin.sim.setup import build
+from pbvs_pin.sim.setup import SETTLE_TIME, build
 
 README = " ".join((REPO_ROOT / "README.md").read_text().split())
 """The README with every run of whitespace (line breaks included) made one space."""
@@ -33,6 +37,12 @@ IDEALISED = {
 """The old idealisation: exact state, no latency, an exact laser, no prediction."""
 
 EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
+
+TIAGO_PRO = {
+    "robot.name": "", "robot.base": "tiago_pro", "robot.camera_link": "arm_right_tool_link",
+    "robot.camera_pose": (0.0, 0.0, 0.0, -np.pi / 2, 0.0, -np.pi / 2),
+}  # fmt: skip
+"""example-robot-data's TIAGo Pro as ``tests/test_any_robot.py`` describes it."""
 
 
 @functools.cache
@@ -178,3 +188,98 @@ def test_prediction_on_the_mujoco_plant():
         f"(the report flags 3 px), TIAGo's {tiago[0]:.2f} and {tiago[1]:.2f} px; `pioneer_ur5` "
         f"Experiment 4 ended up to {ur5[0]:.2f} and {ur5[1]:.2f} px off over the last 5 s"
     )
+
+
+def test_payload_with_integral_servos():
+    def final(engine: str, kg: float, experiment: str) -> float:
+        values = {"plant.engine": engine, "model_error.payload": kg}
+        return run(experiment, **values)[0]["max_abs_error_final_window_px"]
+
+    def pair(engine: str, kg: float) -> str:
+        return f"{final(engine, kg, 'experiment1'):.2f} and {final(engine, kg, 'experiment4'):.2f}"
+
+    stated(
+        f"with the integral {pair('pinocchio', 0.5)} px (MuJoCo: {pair('mujoco', 0.5)} px), "
+        f"1 kg {pair('pinocchio', 1.0)} px ({pair('mujoco', 1.0)} px)"
+    )
+
+
+def test_compensating_the_arm_too():
+    platform = run("experiment4")[0]
+    arm_too = [run(name, **{"compensation.mode": "all"})[0] for name in EXPERIMENTS]
+    stated(
+        f"the arm's |v - u| RMS rose from {platform['velocity_tracking_rms_arm']:.4f} "
+        f"(`platform`) to {arm_too[3]['velocity_tracking_rms_arm']:.4f} and the error over the "
+        f"last 5 s from {platform['max_abs_error_final_window_px']:.2f} to "
+        f"{arm_too[3]['max_abs_error_final_window_px']:.2f} px"
+    )
+    oscillation = [summary["oscillation_rms_px"] for summary in arm_too]
+    stated(f"oscillate by {min(oscillation):.1f}-{max(oscillation):.1f} px RMS above 0.5 Hz")
+
+
+def test_the_net_on_six_and_seven_joint_arms():
+    arms = [name for name in ROBOT_NAMES if build(load_scenario("experiment1").with_values(
+        **{"robot.name": name})).robot.n_arm in (6, 7)]  # fmt: skip
+    assert len(arms) >= 4
+    acting = {
+        name: [run(experiment, **{"robot.name": robot})[1]["gain_limited"] for robot in arms]
+        for name, experiment in zip("1234", EXPERIMENTS, strict=True)
+    }
+    first_three = acting["1"] + acting["2"] + acting["3"]
+    stated(
+        f"it acts in {min(first_three) * 100:.0f}-{max(first_three) * 100:.0f} % of the samples "
+        f"of Experiments 1-3 ({min(acting['4']) * 100:.0f}-{max(acting['4']) * 100:.0f} % in "
+        "Experiment 4)"
+    )
+
+
+def test_the_skid_steer_spin():
+    robot = load_robot("pioneer_cyton")
+    chi = robot.base.track_factor
+    stated(f"Coulomb friction expands its track by {chi:.2f}")
+    stated(f"it would turn at {1.0 / chi:.2f} of")
+
+    def yaw_rate(u: float, omega: float, loop: bool) -> float:
+        options = {} if loop else {"yaw_integral_time": None}
+        plant = _plant(robot, settle=SETTLE_TIME, **options)
+        return _mean_body_velocity(plant, [u, omega, 0.0, 0.0, 0.0])[2]
+
+    slow, fast = yaw_rate(0.0, 0.1, False), yaw_rate(0.0, 0.4, False)
+    stated(
+        f"commanded to spin at 0.4 rad/s it turns at {fast:.2f} rad/s ({fast / 0.4:.2f} of the "
+        f"command; {slow / 0.1:.2f} at 0.1 rad/s)"
+    )
+    commands = ((0.0, 0.1), (0.0, 0.4), (0.2, 0.2))
+    worst = max(abs(yaw_rate(u, omega, True) / omega - 1.0) for u, omega in commands)
+    stated(f"within {worst * 100:.1f} % spinning at 0.1 and 0.4 rad/s")
+
+
+def test_tiago_pro_on_the_mujoco_plant():
+    robot = build(load_scenario("experiment1").with_values(**TIAGO_PRO)).robot
+    command = np.zeros(robot.n)
+    command[1] = 0.4
+    spin = _mean_body_velocity(_plant(robot, settle=SETTLE_TIME), command)[2]
+    runs = [run(name, **TIAGO_PRO, **{"plant.engine": "mujoco"})[0] for name in EXPERIMENTS[::3]]
+    assert all(summary["target_lost_samples"] == 0 for summary in runs)
+    stated(
+        f"skid-steer platform with an expansion factor of {robot.base.track_factor:.1f}: "
+        f"commanded to spin at 0.4 rad/s it turns at {spin:.3f} rad/s, and Experiments 1 and 4 "
+        f"end {runs[0]['max_abs_error_final_window_px']:.1f} and "
+        f"{runs[1]['max_abs_error_final_window_px']:.1f} px off (target never lost)"
+    )
+
+
+def test_unshipped_arms_on_the_mujoco_plant():
+    def finals(arm: str) -> str:
+        table = {"name": "", "base": "pioneer3at", "arm": arm, "mount": (0.10, 0.0, 0.27, 0, 0, 0)}
+        table.update(UNSHIPPED_ARMS[arm])
+        values = {f"robot.{key}": tuple(value) if isinstance(value, list) else value
+                  for key, value in table.items()}  # fmt: skip
+        errors = [
+            run(name, **values, **{"plant.engine": "mujoco"})[0]["max_abs_error_final_window_px"]
+            for name in EXPERIMENTS
+        ]
+        return f"{errors[0]:.2f}, {errors[1]:.2f}, {errors[2]:.2f} and {errors[3]:.2f} px"
+
+    stated(f"the UR10 ends Experiments 1-4 at {finals('ur10')}, the Reach Bravo 7 at "
+           f"{finals('bravo7_no_ee')}")  # fmt: skip
