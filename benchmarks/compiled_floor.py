@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
-from control_step import control_step_ratio
+from control_step import control_step_calls, control_step_ratio, plant_step_calls
 from numba import njit
 
 from pbvs_pin.camera import project_points
@@ -176,18 +176,10 @@ def pinocchio_times(robot_name: str, module, loops) -> dict[str, tuple[float, fl
     control_loop, plant_loop, placement_loop = loops
 
     def python_control() -> None:
-        pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacement(model, data, frame)
-        pin.getFrameJacobian(model, data, frame, pin.LOCAL)
-        pin.crba(model, data, q)
-        pin.nonLinearEffects(model, data, q, v_pin)
-        pin.computeGeneralizedGravity(model, data, q)
+        control_step_calls(model, data, frame, q, v_pin)
 
     def python_plant() -> None:
-        pin.crba(model, data, q)
-        pin.nonLinearEffects(model, data, q, v_pin)
-        pin.computeGeneralizedGravity(model, data, q)
-        pin.integrate(model, q, displacement)
+        plant_step_calls(model, data, q, v_pin, displacement)
 
     def python_placement() -> None:
         robot.camera_placement(q)

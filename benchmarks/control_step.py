@@ -66,6 +66,28 @@ def _no_op(a, b, c, d, e, f, g, h, i, j, k, dt, params, indices, state) -> None:
     """A compiled call that does nothing with the fused step's 15 arguments."""
 
 
+def control_step_calls(
+    model: pin.Model, data: pin.Data, frame: int, q: np.ndarray, v_pin: np.ndarray
+) -> None:
+    """The Pinocchio calls of :meth:`FusedControlStep.step`, made from Python."""
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacement(model, data, frame)
+    pin.getFrameJacobian(model, data, frame, pin.LOCAL)
+    pin.crba(model, data, q)
+    pin.nonLinearEffects(model, data, q, v_pin)
+    pin.computeGeneralizedGravity(model, data, q)
+
+
+def plant_step_calls(
+    model: pin.Model, data: pin.Data, q: np.ndarray, v_pin: np.ndarray, displacement: np.ndarray
+) -> None:
+    """The Pinocchio calls of :meth:`pbvs_pin.plant.Plant.step`, made from Python."""
+    pin.crba(model, data, q)
+    pin.nonLinearEffects(model, data, q, v_pin)
+    pin.computeGeneralizedGravity(model, data, q)
+    pin.integrate(model, q, displacement)
+
+
 def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, float]:
     """Median times [s] of the control step and its parts, and its ratio to its Pinocchio calls.
 
@@ -97,12 +119,7 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, flo
     v_pin = setup.model.selection @ v
 
     def pinocchio_calls() -> None:
-        pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacement(model, data, frame)
-        pin.getFrameJacobian(model, data, frame, pin.LOCAL)
-        pin.crba(model, data, q)
-        pin.nonLinearEffects(model, data, q, v_pin)
-        pin.computeGeneralizedGravity(model, data, q)
+        control_step_calls(model, data, frame, q, v_pin)
 
     step()
     arguments = (
@@ -166,10 +183,7 @@ def plant_step_times(robot_name: str) -> tuple[float, float, float]:
         plant.step(v_ref)
 
     def pinocchio_calls() -> None:
-        pin.crba(model, data, q0)
-        pin.nonLinearEffects(model, data, q0, displacement)
-        pin.computeGeneralizedGravity(model, data, q0)
-        pin.integrate(model, q0, displacement)
+        plant_step_calls(model, data, q0, displacement, displacement)
 
     step_time, calls, _ = _interleaved(step, pinocchio_calls)
     integrate = statistics.median(
