@@ -140,6 +140,7 @@ def plot_map(rows: list[dict[str, Any]], path: Path, threshold_px: float = 10.0)
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import LogFormatter
 
     faults = _faults(rows)
     columns = min(2, len(faults))
@@ -166,6 +167,9 @@ def plot_map(rows: list[dict[str, Any]], path: Path, threshold_px: float = 10.0)
                            label=f"{label}: breaks at {first:g} {unit}".rstrip())  # fmt: skip
         ax.axhline(threshold_px, color="gray", linestyle="--", label=f"{threshold_px:g} px limit")
         ax.set_yscale("log")
+        # plain numbers (2, 30, 500) rather than 2x10^0 on the log axis
+        ax.yaxis.set_major_formatter(LogFormatter(labelOnlyBase=False))
+        ax.yaxis.set_minor_formatter(LogFormatter(labelOnlyBase=False, minor_thresholds=(2, 0.4)))
         ax.set_title(fault)
         ax.set_xlabel(f"{field} [{unit or '-'}]")
         ax.set_ylabel("max |error| over the last 5 s [px]")
