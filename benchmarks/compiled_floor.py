@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
-from control_step import control_step_calls, control_step_ratio, plant_step_calls
+from control_step import control_step_calls, control_step_ratio, mean_time, plant_step_calls
 from numba import njit
 
 from pbvs_pin.camera import project_points
@@ -139,14 +139,6 @@ def _kernel_loop(calls, kernel, arguments):
         kernel(*arguments)
 
 
-def _mean_time(function, calls: int = CALLS) -> float:
-    """Mean time of one call over ``calls`` calls [s]."""
-    start = time.perf_counter()
-    for _ in range(calls):
-        function()
-    return (time.perf_counter() - start) / calls
-
-
 def _loop_time(loop, *arguments) -> float:
     """Mean time of one iteration of a compiled loop of ``CALLS`` iterations [s]."""
     start = time.perf_counter()
@@ -205,11 +197,11 @@ def pinocchio_times(robot_name: str, module, loops) -> dict[str, tuple[float, fl
     if max(differences) > 1e-12:
         sys.exit(f"the compiled calls differ from Python's by {max(differences):.3g}")
     times = _medians(
-        lambda: _mean_time(python_control),
+        lambda: mean_time(python_control, CALLS),
         lambda: _loop_time(control_loop, *addresses, frame, q, v_pin, jacobian),
-        lambda: _mean_time(python_plant),
+        lambda: mean_time(python_plant, CALLS),
         lambda: _loop_time(plant_loop, *addresses, q, v_pin, displacement, q_next),
-        lambda: _mean_time(python_placement),
+        lambda: mean_time(python_placement, CALLS),
         lambda: _loop_time(placement_loop, *addresses, frame, q, rotation, translation),
     )
     names = ("control", "plant", "placement")

@@ -41,7 +41,7 @@ REPEATS = 15
 CALLS = 500
 
 
-def _mean_time(function, calls: int = CALLS) -> float:
+def mean_time(function, calls: int = CALLS) -> float:
     """Mean time of one call over ``calls`` calls [s]."""
     start = time.perf_counter()
     for _ in range(calls):
@@ -56,7 +56,7 @@ def _interleaved(*functions, repeats: int = REPEATS) -> tuple[float, ...]:
     """
     for function in functions:
         function()
-    rows = [[_mean_time(function) for function in functions] for _ in range(repeats)]
+    rows = [[mean_time(function) for function in functions] for _ in range(repeats)]
     medians = [statistics.median(row[i] for row in rows) for i in range(len(functions))]
     return (*medians, statistics.median(row[0] / row[1] for row in rows))
 
@@ -187,7 +187,7 @@ def plant_step_times(robot_name: str) -> tuple[float, float, float]:
 
     step_time, calls, _ = _interleaved(step, pinocchio_calls)
     integrate = statistics.median(
-        _mean_time(lambda: pin.integrate(model, q0, displacement)) for _ in range(REPEATS)
+        mean_time(lambda: pin.integrate(model, q0, displacement)) for _ in range(REPEATS)
     )
     return step_time, calls, integrate
 
@@ -206,7 +206,7 @@ def sensing_and_prediction_times() -> tuple[float, float]:
     clock = iter(np.arange(1, 10**7) * 1e-3)
     sensing.read(0.0)
     reading = statistics.median(
-        _mean_time(lambda: sensing.read(next(clock))) for _ in range(REPEATS)
+        mean_time(lambda: sensing.read(next(clock))) for _ in range(REPEATS)
     )
     perception = Perception(setup)
     q = plant.q
@@ -214,7 +214,7 @@ def sensing_and_prediction_times() -> tuple[float, float]:
     perception.take(setup.sensor.deliver(1.0))  # after the frame latency
     t = perception.frame.time + setup.sensor.period
     prediction = statistics.median(
-        _mean_time(lambda: perception.current(t, q)) for _ in range(REPEATS)
+        mean_time(lambda: perception.current(t, q)) for _ in range(REPEATS)
     )
     assert perception.predicting
     return reading, prediction

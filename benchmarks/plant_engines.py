@@ -12,10 +12,10 @@ median time of one MuJoCo plant step and of the MuJoCo calls it makes (``mj_step
 from __future__ import annotations
 
 import statistics
-import time
 
 import mujoco
 import numpy as np
+from control_step import mean_time
 
 from pbvs_pin.catalogue import REFERENCE_ROBOT
 from pbvs_pin.sim.loop import simulate
@@ -52,14 +52,6 @@ def real_time_factors(repeats: int = REPEATS) -> dict[str, list[float]]:
     return factors
 
 
-def _mean_time(function, calls: int = STEP_CALLS) -> float:
-    """Mean time of one call over ``calls`` calls [s]."""
-    start = time.perf_counter()
-    for _ in range(calls):
-        function()
-    return (time.perf_counter() - start) / calls
-
-
 def plant_step_times(repeats: int = 9) -> tuple[float, float]:
     """Median time of one MuJoCo plant step and of its MuJoCo calls [s], turning."""
     plant = build(_scenario("mujoco")).plant
@@ -77,7 +69,7 @@ def plant_step_times(repeats: int = 9) -> tuple[float, float]:
     def step() -> None:
         plant.step(v_ref)
 
-    pairs = [(_mean_time(step), _mean_time(calls)) for _ in range(repeats)]
+    pairs = [(mean_time(step, STEP_CALLS), mean_time(calls, STEP_CALLS)) for _ in range(repeats)]
     return statistics.median(a for a, _ in pairs), statistics.median(b for _, b in pairs)
 
 
