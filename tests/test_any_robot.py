@@ -18,13 +18,26 @@ UNSHIPPED_ARMS = {  # example-robot-data arms on the reference platform, as a sc
     "ur10": {"camera_link": "tool0", "camera_pose": [0.0] * 6},
     "bravo7_no_ee": {"camera_link": "contact_point", "camera_pose": [0.0] * 6},
 }
+TIAGO_PRO = {  # example-robot-data's TIAGo Pro: its own base, the right arm, an optical frame
+    "name": "", "base": "tiago_pro", "camera_link": "arm_right_tool_link",
+    "camera_pose": [0.0, 0.0, 0.0, -np.pi / 2, 0.0, -np.pi / 2],
+}  # fmt: skip
+
+
+def unshipped_arm(arm):
+    """The ``[robot]`` table of an unshipped arm mounted on the reference platform."""
+    return {"name": "", "base": "pioneer3at", "arm": arm, "mount": [0.10, 0.0, 0.27, 0, 0, 0],
+            **UNSHIPPED_ARMS[arm]}  # fmt: skip
+
+
+def robot_values(table):
+    """Scenario values (``robot.<key>``) of a ``[robot]`` table."""
+    return {f"robot.{key}": value for key, value in table.items()}
 
 
 def _short_run(table):
     """Experiment 1, cut to DURATION, on the robot a ``[robot]`` table describes."""
-    return load_scenario("experiment1").with_values(
-        duration=DURATION, **{f"robot.{key}": value for key, value in table.items()}
-    )
+    return load_scenario("experiment1").with_values(duration=DURATION, **robot_values(table))
 
 
 def _check(log):
@@ -43,18 +56,13 @@ def _check(log):
 
 @pytest.mark.parametrize("robot", ROBOT_NAMES)
 def test_every_shipped_robot_holds_the_target(robot):
-    scenario = load_scenario("experiment1").with_values(
-        duration=DURATION, **{"robot.name": robot}
-    )
+    scenario = load_scenario("experiment1").with_values(duration=DURATION, **{"robot.name": robot})
     _check(simulate(scenario))
 
 
 def test_a_platform_and_arm_the_project_does_not_ship_holds_the_target():
     """example-robot-data's TIAGo Pro (its own base, right arm), described in a scenario."""
-    optical_from_body = [0.0, 0.0, 0.0, -np.pi / 2, 0.0, -np.pi / 2]
-    table = {"name": "", "base": "tiago_pro", "camera_link": "arm_right_tool_link",
-             "camera_pose": optical_from_body}  # fmt: skip
-    _check(simulate(_short_run(table)))
+    _check(simulate(_short_run(TIAGO_PRO)))
 
 
 def test_posture_target_moves_the_run():
@@ -75,6 +83,4 @@ def test_posture_target_moves_the_run():
 
 @pytest.mark.parametrize("arm", sorted(UNSHIPPED_ARMS))
 def test_an_arm_the_project_does_not_ship_holds_the_target(arm):
-    table = {"name": "", "base": "pioneer3at", "arm": arm, "mount": [0.10, 0.0, 0.27, 0, 0, 0]}
-    table.update(UNSHIPPED_ARMS[arm])
-    _check(simulate(_short_run(table)))
+    _check(simulate(_short_run(unshipped_arm(arm))))

@@ -13,7 +13,7 @@ import functools
 
 import numpy as np
 from conftest import REPO_ROOT
-from test_any_robot import UNSHIPPED_ARMS
+from test_any_robot import TIAGO_PRO, robot_values, unshipped_arm
 from test_mujoco_plant import _mean_body_velocity, _plant
 from test_prediction import ALL_FAULTS
 
@@ -38,12 +38,6 @@ IDEALISED = {
 
 EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
 
-TIAGO_PRO = {
-    "robot.name": "", "robot.base": "tiago_pro", "robot.camera_link": "arm_right_tool_link",
-    "robot.camera_pose": (0.0, 0.0, 0.0, -np.pi / 2, 0.0, -np.pi / 2),
-}  # fmt: skip
-"""example-robot-data's TIAGo Pro as ``tests/test_any_robot.py`` describes it."""
-
 
 @functools.cache
 def _run(experiment: str, values: tuple) -> tuple[dict, dict[str, np.ndarray]]:
@@ -62,7 +56,8 @@ def _run(experiment: str, values: tuple) -> tuple[dict, dict[str, np.ndarray]]:
 
 def run(experiment: str, **values: object) -> tuple[dict, dict[str, float]]:
     """The run's summary and a few figures of its log, computed once per configuration."""
-    return _run(experiment, tuple(sorted(values.items())))
+    hashable = {key: tuple(v) if isinstance(v, list) else v for key, v in values.items()}
+    return _run(experiment, tuple(sorted(hashable.items())))
 
 
 def stated(sentence: str) -> None:
@@ -218,8 +213,7 @@ def test_compensating_the_arm_too():
 
 
 def test_the_net_on_six_and_seven_joint_arms():
-    arms = [name for name in ROBOT_NAMES if build(load_scenario("experiment1").with_values(
-        **{"robot.name": name})).robot.n_arm in (6, 7)]  # fmt: skip
+    arms = [name for name in ROBOT_NAMES if load_robot(name).n_arm in (6, 7)]
     assert len(arms) >= 4
     acting = {
         name: [run(experiment, **{"robot.name": robot})[1]["gain_limited"] for robot in arms]
@@ -255,11 +249,12 @@ def test_the_skid_steer_spin():
 
 
 def test_tiago_pro_on_the_mujoco_plant():
-    robot = build(load_scenario("experiment1").with_values(**TIAGO_PRO)).robot
+    tiago_pro = robot_values(TIAGO_PRO)
+    robot = build(load_scenario("experiment1").with_values(**tiago_pro)).robot
     command = np.zeros(robot.n)
     command[1] = 0.4
     spin = _mean_body_velocity(_plant(robot, settle=SETTLE_TIME), command)[2]
-    runs = [run(name, **TIAGO_PRO, **{"plant.engine": "mujoco"})[0] for name in EXPERIMENTS[::3]]
+    runs = [run(name, **tiago_pro, **{"plant.engine": "mujoco"})[0] for name in EXPERIMENTS[::3]]
     assert all(summary["target_lost_samples"] == 0 for summary in runs)
     stated(
         f"skid-steer platform with an expansion factor of {robot.base.track_factor:.1f}: "
@@ -271,10 +266,7 @@ def test_tiago_pro_on_the_mujoco_plant():
 
 def test_unshipped_arms_on_the_mujoco_plant():
     def finals(arm: str) -> str:
-        table = {"name": "", "base": "pioneer3at", "arm": arm, "mount": (0.10, 0.0, 0.27, 0, 0, 0)}
-        table.update(UNSHIPPED_ARMS[arm])
-        values = {f"robot.{key}": tuple(value) if isinstance(value, list) else value
-                  for key, value in table.items()}  # fmt: skip
+        values = robot_values(unshipped_arm(arm))
         errors = [
             run(name, **values, **{"plant.engine": "mujoco"})[0]["max_abs_error_final_window_px"]
             for name in EXPERIMENTS
