@@ -7,18 +7,23 @@ and the velocity-reference model of eq. (1) with the URDF's servos (:class:`Serv
 
 The simulation layer runs the paper's closed loop: :func:`load_scenario` reads a scenario (a
 shipped name such as ``"experiment1"`` or a TOML path) and :func:`simulate` runs it and returns
-its :class:`~pbvs_pin.sim.log.RunLog`. :class:`Controller` runs the same controller in a loop of
-your own (image points and encoders in, velocity references out).
+its :class:`~pbvs_pin.sim.log.RunLog`. :class:`Controller` is the controller that
+:func:`simulate` steps, for a loop of your own: encoders, :class:`CameraFrame` s with their
+capture times and laser readings in, velocity references out; built from
+:class:`ControllerSettings` or a scenario.
 """
 
 from importlib.metadata import PackageNotFoundError, version
 
 from pbvs_pin.base import BaseAdapter, DifferentialDrive, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics, point_interaction_matrix
+from pbvs_pin.camera_frame import CameraFrame
 from pbvs_pin.catalogue import ROBOT_NAMES, load_robot
+from pbvs_pin.control.settings import ControllerSettings
 from pbvs_pin.controller import Controller, ServoCommand
 from pbvs_pin.dynamics import DynamicTerms, rigid_body_terms
 from pbvs_pin.exceptions import (
+    ControlInputError,
     DriveAxleNotFound,
     FrameNotFound,
     GainError,
@@ -46,6 +51,14 @@ from pbvs_pin.servo import ServoModel
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import Scenario, load_scenario
+from pbvs_pin.sim.sections import (
+    CameraSection,
+    CompensationSection,
+    ControllerSection,
+    EstimatorSection,
+    SecondarySection,
+    TargetSection,
+)
 
 try:
     __version__ = version("pbvs_pin")
@@ -56,11 +69,18 @@ except PackageNotFoundError:  # a source tree that was never installed
 __all__ = [
     "ROBOT_NAMES",
     "BaseAdapter",
+    "CameraFrame",
     "CameraIntrinsics",
+    "CameraSection",
+    "CompensationSection",
+    "ControlInputError",
     "Controller",
+    "ControllerSection",
+    "ControllerSettings",
     "DifferentialDrive",
     "DriveAxleNotFound",
     "DynamicTerms",
+    "EstimatorSection",
     "FeatureSet",
     "FixedBase",
     "FrameNotFound",
@@ -79,9 +99,11 @@ __all__ = [
     "RunLog",
     "Scenario",
     "ScenarioError",
+    "SecondarySection",
     "ServoCommand",
     "ServoModel",
     "ShapeError",
+    "TargetSection",
     "TwoSphereFeatures",
     "UrdfError",
     "ViewerUnavailable",

@@ -64,7 +64,7 @@ def matched_ibvs_gain(scenario: str | Scenario = GAIN_RULE_SCENARIO) -> float:
         setup.robot, q0, top, top - np.array([0.0, 0.0, separation])
     )
     jacobian = jacobian / scenario.controller.feature_scale
-    k = setup.controller.feature_gains(jacobian.shape[0])
+    k = setup.law.feature_gains(jacobian.shape[0])
     return float(np.trace(np.diag(k) @ jacobian @ jacobian.T) / jacobian.shape[0])
 
 

@@ -126,10 +126,27 @@ class CameraIntrinsics:
         return np.column_stack([-xi * depths[:, None] / self.focal_px, depths])
 
     def to_pixel(self, xi: npt.ArrayLike) -> np.ndarray:
-        """Image coordinates ``[u, v]`` to pixel ``[col, row]``. Shape (..., 2)."""
+        """Image coordinates ``[u, v]`` to pixel ``[col, row]``. Shape (..., 2).
+
+        ``col`` runs right and ``row`` down from the image's top-left corner; the pixel of
+        index ``(i, j)`` is centred at ``(i + 0.5, j + 0.5)``. ``u = W/2 - col``,
+        ``v = H/2 - row``.
+        """
         xi = np.asarray(xi, dtype=float)
         cx, cy = self.principal_point
         return np.stack([cx - xi[..., 0], cy - xi[..., 1]], axis=-1)
+
+    def from_pixel(self, pixel: npt.ArrayLike) -> np.ndarray:
+        """Pixel ``[col, row]`` to image coordinates ``[u, v]``, :meth:`to_pixel` inverted.
+
+        Args:
+            pixel: ``[col, row]`` [px], the pixel of index ``(i, j)`` centred at
+                ``(i + 0.5, j + 0.5)``. Shape (..., 2).
+
+        Returns:
+            ``[u, v]`` [px], origin at the image centre, ``u`` left, ``v`` up. Shape (..., 2).
+        """
+        return self.to_pixel(pixel)  # (u, v) -> (W/2 - u, H/2 - v) is its own inverse
 
     def in_image(self, xi: npt.ArrayLike, margin: float = 0.0) -> bool:
         """Whether every image point ``[u, v]`` (shape (..., 2)) is inside the image.

@@ -1,39 +1,81 @@
-"""The controller on its own: image points and encoders in, velocity references out.
+"""The controller a robot runs, and the one :func:`pbvs_pin.simulate` validates.
 
-:class:`Controller` is the paper's control chain of Fig. 3 without a simulator, for a loop of
-your own (a real robot's, or a simulator other than :func:`pbvs_pin.simulate`):
+:class:`Controller` is the paper's control chain of Fig. 3, stepped by a loop of your own (a
+real robot's driver, or a simulator other than :func:`pbvs_pin.simulate`, which steps this
+same class). At every control step it takes what a robot has:
 
-1. image points and depths of the target -> features ``xi`` [px] and ``J``, ``J_o`` of
-   eq. (3) from the controller's model at the measured configuration;
-2. the target's position in the world -> its velocity estimate ``phat_dot`` (alpha-beta
-   filter);
-3. secondary objectives (obstacle avoidance, arm posture, joint limits) -> ``Lambda`` of
-   eq. (16);
-4. the kinematic controller of eq. (34) -> command ``u``;
-5. dynamic compensation of eq. (20) -> velocity references ``v_ref`` for the low-level loops.
+- the time ``t`` [s] on the controller's clock, increasing from step to step, at the rate it
+  expects (``controller.rate``, 100 Hz by default; another interval is used as measured);
+- the encoders and odometry as a Pinocchio configuration ``q`` (the platform's pose is the
+  drive-axle midpoint on the floor, ``drive_footprint``, in the odometry's fixed frame) and
+  the actuated velocities ``v = [u [m/s], omega [rad/s], arm joint rates]``;
+- a camera frame when one arrived (:class:`~pbvs_pin.camera_frame.CameraFrame`: its capture
+  time, and the target's image points and depths, or "not visible"); None when none arrived;
+- a laser reading ``(d [m], alpha [rad])`` of the nearest obstacle when a scan arrived.
 
-Build it from a scenario, which gives the gains, ``xi_d`` and the objectives::
+and returns the velocity references for the robot's own velocity loops (:class:`ServoCommand`).
+Inside, in the order of the paper's Fig. 3:
 
-    controller = Controller.from_scenario(load_scenario("experiment1"), robot)
-    command = controller.step(q, v, points, depths, t)   # command.v_ref, shape (n,)
+1. the encoder history places each frame at the configuration of its capture instant
+   (:mod:`pbvs_pin.control.encoders`);
+2. the frame updates the target's world position and the alpha-beta velocity filter
+   (eq. 30), and is brought up to now along eq. (3) (prediction, hold and smoothing,
+   :mod:`pbvs_pin.control.tracking`);
+3. features ``xi`` and ``J``, ``J_o`` of eq. (3), secondary objectives ``Lambda`` (eq. 16),
+   the upright row and the loop-gain net (:mod:`pbvs_pin.control.upright`) feed the kinematic
+   controller of eq. (34), whose command ``u`` goes through the dynamic compensation of
+   eq. (20), in one compiled call (:mod:`pbvs_pin.control.step`) for the passivity law with
+   the built-in objectives.
+
+Bad input at run time: a wrong shape, a non-finite encoder value, time going backwards or a
+frame captured after ``t`` raise the project's error naming the argument, and leave the
+controller as it was; a frame older than the newest one, older than the encoder history, or
+with non-finite or non-positive depths is not used (``ServoCommand.rejected`` says why; a
+frame whose values are not usable counts as one that does not show the target); a jump of
+the odometry (a platform pose that the velocity limits cannot reach in one step) drops the
+measurement, which was placed with the old odometry. ``v_ref`` is always finite and within
+the velocity limits.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import copy
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
 
-from pbvs_pin.control.compensation import DynamicCompensator
-from pbvs_pin.control.kinematic import ControlOutput, PassivityController
-from pbvs_pin.control.secondary import SecondaryInput, SecondaryObjective, secondary_vector
-from pbvs_pin.estimation import VelocityEstimator
-from pbvs_pin.features import FeatureSet, ImageMeasurement
+from pbvs_pin.camera import MIN_DEPTH
+from pbvs_pin.camera_frame import CameraFrame
+from pbvs_pin.compile_cache import compile_notice
+from pbvs_pin.control import layout
+from pbvs_pin.control.encoders import TIME_TOLERANCE, EncoderHistory
+from pbvs_pin.control.kinematic import ControlOutput
+from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
+from pbvs_pin.control.settings import (
+    ControllerSettings,
+    compensator,
+    kinematic_law,
+    loop_gain_margin,
+    posture_target,
+    secondary_objectives,
+)
+from pbvs_pin.control.step import FusedControlStep
+from pbvs_pin.control.tracking import TargetTracker
+from pbvs_pin.control.upright import upright_row
+from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
+from pbvs_pin.features import ImageMeasurement, TwoSphereFeatures
 from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.sim.scenario import Scenario
-from pbvs_pin.sim.setup import build
 from pbvs_pin.validation import as_array
+
+JUMP_SLACK = (0.05, 0.1)
+"""Platform motion in one step [m, rad] beyond the velocity limits' reach that counts as an
+odometry jump."""
+
+LATENCY_RESOLUTION = 1e-6
+"""The frames' latency is rounded to this [s] before it sets the loop-gain margin."""
 
 
 @dataclass(frozen=True)
@@ -41,15 +83,24 @@ class ServoCommand:
     """What one control step gives.
 
     Attributes:
-        v_ref: Velocity references for the low-level loops: platform ``[u [m/s], omega
-            [rad/s]]`` then arm joint rates [rad/s or m/s], clipped to the velocity limits.
-            Shape (n,). Zero until the target has been seen.
+        v_ref: Velocity references for the robot's velocity loops: platform ``[u [m/s], omega
+            [rad/s]]`` then arm joint rates [rad/s or m/s], finite and within the velocity
+            limits. Shape (n,). The compensation of a zero command (braking) when there is
+            nothing to servo on.
         u: Kinematic command of eq. (34), same units. Shape (n,).
-        error: Feature error ``xi - xi_d`` [px]. Shape (r,); NaN until the target is seen.
-        target_velocity: Estimated target velocity ``phat_dot`` in the world [m/s]. Shape (3,).
-        seen: Whether a measurement of the target was available.
-        output: The kinematic controller's output with its diagnostics (storage, damping,
-            saturation).
+        error: Feature error ``xi - xi_d`` [px] of what was servoed on. Shape (r,); NaN when
+            nothing was.
+        target_velocity: The target velocity ``phat_dot`` used [m/s]. Shape (3,).
+        seen: The step servoed on a measurement of the target or its prediction.
+        lost: The newest frame did not show the target (or was not usable).
+        predicting: What was servoed on is a prediction (``estimator.predict`` or the hold).
+        frame_age: ``t`` minus the capture time of the newest measurement [s]; inf before
+            the first.
+        latency: The newest frame's age when it arrived [s]; NaN before the first.
+        rejected: Why the frame given to this step was not used; empty when it was (or none
+            was given).
+        odometry_jumped: The platform pose jumped; the measurement was dropped.
+        v2: ``V2 = |v - u|^2 / 2`` of eq. (22).
     """
 
     v_ref: np.ndarray
@@ -57,133 +108,372 @@ class ServoCommand:
     error: np.ndarray
     target_velocity: np.ndarray
     seen: bool
-    output: ControlOutput
+    lost: bool
+    predicting: bool
+    frame_age: float
+    latency: float
+    rejected: str
+    odometry_jumped: bool
+    v2: float
 
 
 class Controller:
     """The passivity-based visual servo controller, stepped by your own loop.
 
+    Build it with typed settings (:class:`~pbvs_pin.control.settings.ControllerSettings`,
+    whose sections are a scenario's, with the same defaults) or from a scenario::
+
+        controller = Controller(robot, ControllerSettings(estimator=EstimatorSection(
+            predict=True, hold=0.5)))
+        controller = Controller.from_scenario(load_scenario("experiment1"), robot)
+
+    It compiles its kernels (or loads them from Numba's cache) when it is built, saying so on
+    stderr when a compile is needed (``announce``), so that its first step is as fast as the
+    next.
+
     Args:
-        robot: The controller's model of the robot.
-        features: Feature set (which image coordinates form ``xi``).
+        robot: The controller's model of the robot; the camera intrinsics are the settings'.
+        settings: The settings; the defaults when None.
+        announce: Print a line on stderr before compiling the kernels.
+
+    Attributes:
+        model: The controller's model of the robot (with the settings' intrinsics).
+        settings: The settings.
+        features: Feature set of the two spheres.
         xi_d: Desired features [px]. Shape (r,).
-        controller: Kinematic controller (eq. 34).
-        compensator: Dynamic compensation (eq. 20).
-        objectives: Secondary objectives summed into ``Lambda``.
-        estimator: Target velocity estimator fed with the target's position in the world.
+        posture_target: ``theta_d`` of eq. (19) [rad or m]. Shape (n_arm,).
+        law: The kinematic controller (eq. 34, or the IBVS baseline).
+        compensator: The dynamic compensation (eq. 20) of the modular path.
+        objectives: The secondary objectives.
+        tracker: The newest measurement, prediction, hold and velocity filter.
+        history: The encoder readings of the last ``settings.history`` seconds.
     """
 
     def __init__(
         self,
         robot: MobileManipulator,
-        features: FeatureSet,
-        xi_d: npt.ArrayLike,
-        controller: PassivityController,
-        compensator: DynamicCompensator,
-        objectives: list[SecondaryObjective],
-        estimator: VelocityEstimator,
+        settings: ControllerSettings | None = None,
+        announce: bool = True,
     ) -> None:
-        self.robot = robot
-        self.features = features
-        self.xi_d = as_array("xi_d", xi_d, (features.size,))
-        self.controller = controller
-        self.compensator = compensator
-        self.objectives = list(objectives)
-        self.estimator = estimator
-        self.measurement: ImageMeasurement | None = None
-        self._previous_t: float | None = None
+        settings = settings if settings is not None else ControllerSettings()
+        camera = settings.camera.intrinsics()
+        if robot.camera != camera:
+            robot = copy.copy(robot)
+            robot.camera = camera
+        self.model, self.settings = robot, settings
+        self.features = TwoSphereFeatures(settings.target.diameter)
+        self.xi_d = np.asarray(settings.target.xi_d, dtype=float)
+        self.posture_target = posture_target(settings, robot)
+        self.period = settings.control_period
+        self.history = EncoderHistory(robot.model, settings.history, self.period)
+        self._exact = settings.estimator.kind == "exact"
+        self._margin_slot = layout.slot(layout.Settings, "loop_gain_margin")
+        self._root_q = _planar_root_slice(robot.model)
+        self.reset()
+        if announce:
+            compile_notice()
+        self._warm_up()
 
     @classmethod
     def from_scenario(
-        cls, scenario: Scenario, robot: MobileManipulator | None = None
+        cls, scenario: object, robot: MobileManipulator | None = None, announce: bool = True
     ) -> Controller:
-        """The controller a simulation of ``scenario`` would run.
+        """The controller a simulation of ``scenario`` runs.
 
         Args:
-            scenario: Gives ``xi_d``, the gains, the compensation, the secondary objectives,
-                the estimator and the model errors of the controller's model.
-            robot: The robot, replacing the scenario's ``[robot]`` table (as in
-                :func:`pbvs_pin.simulate`).
+            scenario: A :class:`~pbvs_pin.sim.scenario.Scenario`: gives the settings
+                (:meth:`ControllerSettings.from_scenario`) and, unless ``robot`` is given, the
+                robot, with the kinematic error of ``[model_error]``.
+            robot: The controller's model of the robot, replacing the scenario's.
+            announce: Print a line on stderr before compiling the kernels.
 
         Raises:
             ScenarioError: If a value does not fit the robot.
         """
-        setup = build(scenario, robot)
-        return cls(
-            setup.model, setup.features, setup.xi_d, setup.controller, setup.compensator,
-            setup.objectives, setup.estimator,
-        )  # fmt: skip
+        if robot is None:
+            robot = scenario.robot.build(scenario.camera.intrinsics())
+            robot = robot.with_model_error(scenario.model_error.kinematic_scale)
+        return cls(robot, ControllerSettings.from_scenario(scenario), announce)
+
+    def reset(self) -> None:
+        """Forget every frame, reading and command: the state of a controller just built."""
+        settings, model = self.settings, self.model
+        self.latency = settings.camera.delivery_latency
+        """The frames' age on arrival [s] that sets the loop-gain margin; the settings'
+        camera latency until a frame arrives."""
+        self.law = kinematic_law(settings, model, self.latency)
+        self.compensator = compensator(settings, model)
+        self.objectives = secondary_objectives(settings, model, self.posture_target)
+        spec = settings.estimator
+        self.tracker = TargetTracker(
+            model, spec.filter(), spec.predict, spec.hold, spec.smoothing
+        )
+        self.history.clear()
+        self.fused = None
+        if FusedControlStep.supports(self.law, self.objectives):
+            self.fused = FusedControlStep(
+                model, self.features, self.xi_d, self.law, self.compensator, self.objectives
+            )
+        self.laser = np.array([np.inf, 0.0])
+        self._t = -np.inf
+        self._previous_root: np.ndarray | None = None
+        self._newest_capture = -np.inf
+        self._latency_seen = float("nan")
+        self._diagnostics: tuple[ControlOutput, tuple | None] | None = None
 
     def step(
         self,
+        t: float,
         q: npt.ArrayLike,
         v: npt.ArrayLike,
-        points: npt.ArrayLike | None,
-        depths: npt.ArrayLike | None,
-        t: float,
-        obstacle: tuple[float, float] = (float("inf"), 0.0),
+        frame: CameraFrame | None = None,
+        laser: tuple[float, float] | None = None,
         target_velocity: npt.ArrayLike | None = None,
     ) -> ServoCommand:
         """One control step.
 
         Args:
-            q: Measured Pinocchio configuration (odometry and encoders). Shape (nq,).
+            t: Time [s] on the controller's clock; larger than the previous step's.
+            q: Measured configuration (odometry and encoders). Shape (nq,).
             v: Measured actuated velocity ``[u, omega, arm rates]``. Shape (n,).
-            points: Image points ``[u, v]`` of the target points [px] in the paper's
-                image coordinates (origin at the image centre, ``u`` to the left, ``v``
-                upwards), shape (k, 2); None when no new camera frame arrived, in which case
-                the newest measurement is used again.
-            depths: Depth of each point along the optical axis [m], shape (k,), e.g. from
-                an apparent diameter with :meth:`CameraIntrinsics.depth_from_diameter`;
-                None with ``points``.
-            t: Time [s]; increasing from call to call.
-            obstacle: Shortest laser range ``d`` [m] and its angle ``alpha`` [rad] (clockwise
-                from the platform's forward axis) for obstacle avoidance; ``inf``: none.
+            frame: The camera frame that arrived since the previous step (the newest, if
+                several did); None when none did. A frame whose target is not visible is
+                ``CameraFrame.not_visible(capture_time)``.
+            laser: Shortest laser range ``d`` [m] (``inf``: nothing in range) and its angle
+                ``alpha`` [rad] (clockwise from the platform's forward axis) when a scan
+                arrived; None keeps the previous reading.
             target_velocity: The target's velocity in the world [m/s], shape (3,), when you
-                know it; the estimator's otherwise.
+                know it (required with ``estimator.kind = "exact"``); the filter's otherwise.
 
         Returns:
-            The velocity references and the step's diagnostics.
+            The velocity references and what the step saw.
 
         Raises:
             ShapeError: If an array has the wrong shape.
-            NonFiniteValue: If an input is NaN or infinite.
+            NonFiniteValue: If ``t``, ``q``, ``v``, ``laser`` or ``target_velocity`` is NaN
+                or infinite (a range of ``inf`` is allowed).
+            ControlInputError: If ``t`` is not after the previous step's, or the frame was captured
+                after ``t``.
         """
-        q = self.robot.check_configuration(q)
-        v = self.robot.check_velocity(v)
-        t = float(t)
-        dt = 0.0 if self._previous_t is None else max(t - self._previous_t, 0.0)
-        self._previous_t = t
-        if points is not None:
-            self._observe(q, points, depths, t)
-        if target_velocity is not None:
-            velocity = as_array("target_velocity", target_velocity, (3,))
-        else:
-            velocity = np.asarray(self.estimator.velocity, dtype=float)
-        robot = self.robot
-        state = SecondaryInput(robot.arm_positions(q), float(obstacle[0]), float(obstacle[1]), dt)
-        secondary = secondary_vector(self.objectives, state, robot.n_base, robot.n)
-        size = self.features.size
-        if self.measurement is None:
-            output = self.controller.zero_output(size)
-            error = np.full(size, np.nan)
-        else:
-            rotation = robot.camera_pose(q).rotation
-            xi, jacobian, object_jacobian = self.features.jacobians_from_measurement(
-                robot.camera, self.measurement, robot.camera_jacobian(q), rotation.T
-            )
-            error = xi - self.xi_d
-            output = self.controller.step(error, jacobian, object_jacobian, velocity, secondary)
-        v_ref, _ = self.compensator.step(q, v, output.u, dt)
-        return ServoCommand(v_ref, output.u, error, velocity, self.measurement is not None, output)
+        t, q, v, laser, given = self._checked(t, q, v, laser, target_velocity)
+        shown = self._frame_arrays(frame, t)
+        dt = self.period if self._t == -np.inf else t - self._t
+        if abs(dt - self.period) <= TIME_TOLERANCE:
+            dt = self.period
+        self._t = t
+        jumped = self._odometry_jumped(q, dt)
+        if jumped:
+            self.history.clear()
+            self.tracker.forget()
+        self.history.record(t, q)
+        if laser is not None:
+            self.laser = laser
+        rejected = ""
+        if frame is not None:
+            rejected = self._take(frame.capture_time, shown, t, self._velocity(given))
+        velocity = self._velocity(given)
+        measurement = self.tracker.current(t, q, velocity)
+        u, v_ref, v2, error = self._command(q, v, measurement, velocity, dt)
+        tracker = self.tracker
+        return ServoCommand(
+            v_ref=v_ref.copy(), u=u.copy(), error=error, target_velocity=velocity,
+            seen=measurement is not None, lost=tracker.lost, predicting=tracker.predicting,
+            frame_age=t - tracker.capture_time, latency=self._latency_seen, rejected=rejected,
+            odometry_jumped=jumped, v2=float(v2),
+        )  # fmt: skip
 
-    def _observe(
-        self, q: np.ndarray, points: npt.ArrayLike, depths: npt.ArrayLike | None, t: float
-    ) -> None:
-        """Keep a new measurement and feed the target's midpoint in the world to the filter."""
+    def diagnostics(self) -> tuple[ControlOutput, tuple[np.ndarray, np.ndarray] | None]:
+        """The last step's kinematic output and ``(J, J_o)`` [px per unit] (None unseen)."""
+        if self._diagnostics is None:
+            return self.fused.output()
+        return self._diagnostics
+
+    def _checked(self, t, q, v, laser, target_velocity) -> tuple:
+        """The inputs as float arrays, checked (see :meth:`step`'s Raises)."""
+        t = float(as_array("t", t, ()))
+        if not t > self._t:
+            raise ControlInputError(f"t = {t:g} s is not after the previous step's ({self._t:g} s)")
+        q = self.model.check_configuration(q)
+        v = self.model.check_velocity(v)
+        if laser is not None:
+            laser = np.array(laser, dtype=float)
+            if laser.shape != (2,):
+                raise ShapeError("laser", (2,), laser.shape)
+            if math.isnan(laser[0]) or not math.isfinite(laser[1]):
+                raise NonFiniteValue("laser")
+        if target_velocity is not None:
+            target_velocity = as_array("target_velocity", target_velocity, (3,))
+        elif self._exact:
+            raise ControlInputError(
+                'estimator.kind = "exact" needs target_velocity at every step; give it, or '
+                'use kind = "alpha_beta"'
+            )
+        return t, q, v, laser, target_velocity
+
+    def _velocity(self, given: np.ndarray | None) -> np.ndarray:
+        """``phat_dot``: the given velocity, or the filter's estimate."""
+        return given if given is not None else self.tracker.estimator.velocity
+
+    def _frame_arrays(
+        self, frame: CameraFrame | None, t: float
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """A frame's points and depths as float arrays of the right shapes (None: not visible).
+
+        Raises:
+            ControlInputError: If ``frame`` is not a CameraFrame or None, or was captured
+                after ``t`` or at no finite time.
+            ShapeError: If its points or depths have the wrong shape.
+        """
+        if frame is None:
+            return None
+        if not isinstance(frame, CameraFrame):
+            raise ControlInputError(f"frame: expected a CameraFrame or None, got {frame!r}")
+        if not -np.inf < frame.capture_time <= t + TIME_TOLERANCE:
+            raise ControlInputError(
+                f"frame captured at {frame.capture_time!r} s, after now ({t:g} s); expected "
+                "the capture time on the controller's clock"
+            )
+        if not frame.visible:
+            return None
         k = self.features.n_points
-        points = as_array("points", points, (k, 2))
-        depths = as_array("depths", depths, (k,))
-        self.measurement = ImageMeasurement(points, depths)
-        in_camera = self.robot.camera.back_project(points, depths)
-        self.estimator.update(self.robot.camera_pose(q).act(in_camera.mean(axis=0)), t)
+        points = np.asarray(frame.points, dtype=float)
+        depths = np.asarray(frame.depths, dtype=float)
+        if points.shape != (k, 2):
+            raise ShapeError("frame.points", (k, 2), points.shape)
+        if depths.shape != (k,):
+            raise ShapeError("frame.depths", (k,), depths.shape)
+        return points, depths
+
+    def _take(
+        self,
+        capture: float,
+        shown: tuple[np.ndarray, np.ndarray] | None,
+        t: float,
+        velocity: np.ndarray,
+    ) -> str:
+        """Give the tracker a frame at its capture configuration; why not, if it is not used.
+
+        Args:
+            capture: The frame's capture time [s].
+            shown: Its points [px] (k, 2) and depths [m] (k,); None when not visible.
+            t: Now [s].
+            velocity: ``phat_dot`` before the frame [m/s]. Shape (3,).
+        """
+        if not capture > self._newest_capture:
+            newest = self._newest_capture
+            return f"captured at {capture:g} s, not after the newest frame ({newest:g} s)"
+        q_capture = self.history.at(capture)
+        if q_capture is None:
+            oldest, span = self.history.oldest_time, self.settings.history
+            return (
+                f"captured at {capture:g} s, before the encoder history ({oldest:g} s; "
+                f"settings.history = {span:g} s)"
+            )
+        self._newest_capture = capture
+        self._observe_latency(t - capture)
+        measurement, rejected = _usable(shown)
+        self.tracker.take(measurement, capture, q_capture, velocity)
+        return rejected
+
+    def _observe_latency(self, latency: float) -> None:
+        """Set the loop-gain margin for the frames' latency (without prediction)."""
+        latency = round(latency / LATENCY_RESOLUTION) * LATENCY_RESOLUTION
+        self._latency_seen = latency
+        if latency == self.latency or self.settings.estimator.predict:
+            return
+        self.latency = latency
+        margin = loop_gain_margin(self.settings, latency)
+        gains = replace(self.law.gains, loop_gain_margin=margin)
+        self.law.gains, self.law.safety = gains, self.law.safety._replace(loop_gain_margin=margin)
+        if self.fused is not None:
+            self.fused.settings[self._margin_slot] = margin
+
+    def _odometry_jumped(self, q: np.ndarray, dt: float) -> bool:
+        """Whether the planar root moved further than the velocity limits allow in ``dt``."""
+        if self._root_q is None:
+            return False
+        root = q[self._root_q]
+        previous, self._previous_root = self._previous_root, root.copy()
+        if previous is None:
+            return False
+        limits = self.law.velocity_limits
+        moved = math.hypot(root[0] - previous[0], root[1] - previous[1])
+        turned = abs(math.atan2(
+            previous[2] * root[3] - previous[3] * root[2],
+            previous[2] * root[2] + previous[3] * root[3],
+        ))  # fmt: skip
+        return moved > 2 * limits[0] * dt + JUMP_SLACK[0] or turned > (
+            2 * limits[self.model.n_base - 1] * dt + JUMP_SLACK[1]
+        )
+
+    def _command(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        measurement: ImageMeasurement | None,
+        velocity: np.ndarray,
+        dt: float,
+    ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+        """``u``, ``v_ref``, ``V2`` and the feature error: compiled, or the modular classes."""
+        fused = self.fused
+        if fused is not None and measurement is not None:
+            self._diagnostics = None
+            u, v_ref, v2 = fused.step(q, v, measurement, velocity, self.laser, dt)
+            return u, v_ref, v2, fused.views.xi - self.xi_d
+        if fused is not None:
+            fused.restart_derivative()  # the command derivative restarts after a loss
+        output, jacobians = self._modular(q, measurement, velocity, dt)
+        self._diagnostics = (output, jacobians)
+        v_ref, v2 = self.compensator.step(q, v, output.u, dt)
+        return output.u, v_ref, v2, output.error
+
+    def _modular(
+        self, q: np.ndarray, measurement: ImageMeasurement | None, velocity: np.ndarray, dt: float
+    ) -> tuple[ControlOutput, tuple[np.ndarray, np.ndarray] | None]:
+        """Kinematic controller on the measurement; zero command when there is none."""
+        model = self.model
+        state = SecondaryInput(model.arm_positions(q), self.laser[0], self.laser[1], dt)
+        secondary = secondary_vector(self.objectives, state, model.n_base, model.n)
+        if measurement is None:
+            return self.law.zero_output(self.features.size), None
+        camera_jacobian = model.camera_jacobian_unchecked(q)
+        rotation = model.data.oMf[model.camera_frame_id].rotation
+        xi, jacobian, object_jacobian = self.features.jacobians_from_measurement(
+            model.camera, measurement, camera_jacobian, rotation.T
+        )
+        output = self.law.step(
+            xi - self.xi_d, jacobian, object_jacobian, velocity, secondary,
+            upright_row(rotation, camera_jacobian),
+        )  # fmt: skip
+        return output, (jacobian, object_jacobian)
+
+    def _warm_up(self) -> None:
+        """Run both paths once on the home posture, then forget it: the kernels are compiled."""
+        model = self.model
+        q, v = model.home(), np.zeros(model.n)
+        points = np.array([[0.0, 30.0], [0.0, -30.0]])
+        self.step(0.0, q, v, CameraFrame.seen(0.0, points, np.ones(2)), laser=(1.0, 0.0),
+                  target_velocity=np.zeros(3))  # fmt: skip
+        self.step(self.period, q, v, CameraFrame.not_visible(self.period),
+                  target_velocity=np.zeros(3))  # fmt: skip
+        self.reset()
+
+
+def _usable(shown: tuple[np.ndarray, np.ndarray] | None) -> tuple[ImageMeasurement | None, str]:
+    """The frame's measurement, or None and why its values cannot be used."""
+    if shown is None:
+        return None, ""
+    points, depths = shown
+    if not (np.isfinite(points).all() and np.isfinite(depths).all()):
+        return None, "non-finite points or depths: taken as not visible"
+    if not (depths > MIN_DEPTH).all():
+        return None, f"depths {depths.tolist()} not above {MIN_DEPTH} m: taken as not visible"
+    return ImageMeasurement(points, depths), ""
+
+
+def _planar_root_slice(model: pin.Model) -> slice | None:
+    """Where a planar root joint's ``[x, y, cos, sin]`` lie in ``q``; None without one."""
+    if model.njoints < 2 or model.joints[1].shortname() != "JointModelPlanar":
+        return None
+    start = model.joints[1].idx_q
+    return slice(start, start + 4)

@@ -28,6 +28,10 @@ class VelocityEstimator(abc.ABC):
     def update(self, position: np.ndarray, time: float) -> None:
         """Take a new position measurement [m] (shape (3,)) taken at ``time`` [s]."""
 
+    @abc.abstractmethod
+    def reset(self) -> None:
+        """Forget every measurement: the next one starts the estimate afresh."""
+
     @property
     @abc.abstractmethod
     def position(self) -> np.ndarray:
@@ -57,6 +61,10 @@ class AlphaBetaFilter(VelocityEstimator):
                 "beta",
             )
         self.alpha, self.beta = alpha, beta
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every measurement: zero estimates, the next measurement starts the track."""
         self._position = np.zeros(3)
         self._velocity = np.zeros(3)
         self._time: float | None = None

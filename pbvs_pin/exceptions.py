@@ -201,6 +201,10 @@ class HomeNotFound(PbvsError):
         )
 
 
+class ControlInputError(PbvsError):
+    """A control step's input cannot be used: time not increasing, a frame from the future."""
+
+
 class OutputError(PbvsError):
     """An output folder or file cannot be written (not writable, a full disk)."""
 

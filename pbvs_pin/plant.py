@@ -78,29 +78,16 @@ class Plant:
         self._v = np.asarray(value, dtype=float)
         self._v_pin = self.robot.selection @ self._v
 
-    def step(
-        self,
-        v_ref: np.ndarray,
-        terms: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-    ) -> None:
+    def step(self, v_ref: np.ndarray) -> None:
         """Advance by one step ``dt`` under the velocity reference ``v_ref`` (shape (n,)).
 
         Pinocchio gives the rigid-body terms; :func:`pbvs_pin.servo.servo_step` solves the
         linearly implicit step; ``pin.integrate`` moves ``q`` on its manifold.
-
-        Args:
-            v_ref: Velocity reference. Shape (n,).
-            terms: ``pin.crba``, ``pin.nonLinearEffects`` and ``pin.computeGeneralizedGravity``
-                already computed at this plant's ``(q, S v)`` on a model equal to its own (the
-                controller's, when it has no model error); None computes them.
         """
         model, data = self.robot.model, self.robot.data
-        if terms is None:
-            mass = pin.crba(model, data, self.q)
-            bias = pin.nonLinearEffects(model, data, self.q, self._v_pin)
-            gravity = pin.computeGeneralizedGravity(model, data, self.q)
-        else:
-            mass, bias, gravity = terms
+        mass = pin.crba(model, data, self.q)
+        bias = pin.nonLinearEffects(model, data, self.q, self._v_pin)
+        gravity = pin.computeGeneralizedGravity(model, data, self.q)
         servo_mass = mass
         if self.tuned is not None:  # the servos' own view: the robot they were tuned on
             tuned = self.tuned

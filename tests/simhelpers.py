@@ -112,3 +112,28 @@ def obstacle_scenario(avoidance: bool, duration: float = 9.0) -> Scenario:
     raw["secondary"] = {"obstacle_avoidance": avoidance, "d0": 1.2}
     raw["obstacles"] = [dict(OBSTACLE_ON_PATH)]
     return parse_scenario(raw, f"experiment1+obstacle(avoidance={avoidance})")
+
+
+def controller_with_first_frame(scenario: Scenario, modular: bool = False):
+    """A run's setup and its public controller, given a frame of the target taken at t = 0.
+
+    The frame is the exact projection (eq. 2) of the true sphere centres from the start.
+
+    Args:
+        scenario: The scenario.
+        modular: Step the modular classes instead of the compiled step.
+    """
+    from pbvs_pin import CameraFrame
+    from pbvs_pin.sim.setup import build
+
+    setup = build(scenario)
+    control = setup.control
+    if modular:
+        control.fused = None
+    q = setup.plant.q
+    points, depths = setup.model.camera.project_world(
+        setup.model.camera_pose(q), setup.target.centres(0.0)
+    )
+    frame = CameraFrame.seen(0.0, points, depths)
+    control.step(0.0, q, np.zeros(setup.model.n), frame, target_velocity=np.zeros(3))
+    return setup, control

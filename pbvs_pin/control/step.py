@@ -244,13 +244,14 @@ class FusedControlStep:
             **switched_on,
         )
         self.xi_d = p.xi_d
+        self.settings = p.settings
+        """View of the constant scalars (:class:`~pbvs_pin.control.layout.Settings`)."""
         self.state = np.zeros(layout.state_size(self.indices))
         self.views = layout.state_views(self.state, self.indices)
         """Named views of ``state``, the last step's memory and outputs."""
         self._u, self._v_ref, self._scalars = self.views.u, self.views.v_ref, self.views.scalars
         self._v2 = layout.slot(layout.StepScalars, "v2")
         self._has_previous = layout.slot(layout.StepScalars, "has_previous")
-        self._last: tuple | None = None
         self._pinocchio = (
             model.model,
             model.data,
@@ -305,34 +306,11 @@ class FusedControlStep:
             jacobian, rotation, mass, bias, gravity, q, v, measurement.points,
             measurement.depths, target_velocity, laser, dt, self.params, self.indices, self.state,
         )  # fmt: skip
-        self._last = (q, v, mass, bias, gravity)
         return self._u, self._v_ref, self._scalars[self._v2]
-
-    def terms_at(
-        self, q: np.ndarray, v: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """The last step's ``(crba, nonLinearEffects, gravity)`` if it ran on these arrays.
-
-        A plant whose model equals the controller's can step on them instead of computing
-        them again (:meth:`pbvs_pin.plant.Plant.step`). They are views into the model's
-        ``pin.Data``: valid until its next Pinocchio call.
-
-        Args:
-            q: The plant's configuration: the very array (``is``) the step was given.
-            v: The plant's actuated velocity: the very array the step was given.
-
-        Returns:
-            The three terms, or None if the last step ran on other arrays (or none ran).
-        """
-        last = self._last
-        if last is None or q is not last[0] or v is not last[1]:
-            return None
-        return last[2:]
 
     def restart_derivative(self) -> None:
         """Forget the stored command: the next step does not differentiate it (after a loss)."""
         self._scalars[self._has_previous] = 0.0
-        self._last = None
 
     def output(self) -> tuple[ControlOutput, tuple[np.ndarray, np.ndarray]]:
         """The last step's diagnostics, as the modular controller reports them."""

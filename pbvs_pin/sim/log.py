@@ -47,7 +47,7 @@ from pbvs_pin.sim.sensing import planar_pose
 
 if TYPE_CHECKING:
     from pbvs_pin.control.kinematic import ControlOutput
-    from pbvs_pin.sim.perception import Perception
+    from pbvs_pin.control.tracking import TargetTracker
     from pbvs_pin.sim.sensing import Sensing
     from pbvs_pin.sim.setup import Setup
 
@@ -227,7 +227,8 @@ class RunRecorder:
         t: float,
         output: ControlOutput,
         jacobians: tuple[np.ndarray, np.ndarray] | None,
-        perception: Perception,
+        tracker: TargetTracker,
+        target_velocity: np.ndarray,
         v_ref: np.ndarray,
         v2: float,
         laser: tuple[float, float],
@@ -235,26 +236,26 @@ class RunRecorder:
         """Append one sample of what exists only at this instant."""
         setup = self.setup
         plant = setup.plant
-        measurement = perception.measurement
-        seen = measurement is not None and not perception.lost
+        measurement = tracker.measurement
+        seen = measurement is not None and not tracker.lost
         rows = self.rows
         for name, value in (
             ("t", t), ("u", output.u), ("v_ref", v_ref), ("v", plant.v), ("q", plant.q),
-            ("target_estimate", perception.filter.position),
-            ("target_velocity_estimate", perception.velocity(t)),
+            ("target_estimate", tracker.estimator.position),
+            ("target_velocity_estimate", target_velocity),
             ("obstacle_distance", laser[0]), ("obstacle_angle", laser[1]),
             ("storage", output.storage), ("storage_v2", v2), ("nu", output.nu),
             ("saturated", output.saturated), ("damped", output.damped),
-            ("target_lost", perception.lost), ("valid", output.valid),
+            ("target_lost", tracker.lost), ("valid", output.valid),
             ("loop_gain", output.loop_gain), ("gain_limited", output.gain_limited),
-            ("upright_angle", output.upright_angle), ("predicted", perception.predicting),
+            ("upright_angle", output.upright_angle), ("predicted", tracker.predicting),
             ("v_measured", self.sensing.v),
             ("platform_pose_measured", planar_pose(setup.robot, self.sensing.q)),
             ("wheel_angles", plant.wheel_angles),
         ):  # fmt: skip
             rows[name].append(np.array(value, copy=True))
         unseen = np.full(setup.features.size, np.nan)
-        used = perception.used
+        used = tracker.used
         rows["xi"].append(setup.features.features(used) if used is not None else unseen)
         rows["xi_measured"].append(setup.features.features(measurement) if seen else unseen)
         r, n = setup.features.size, setup.model.n
@@ -301,7 +302,7 @@ class RunRecorder:
         channels = {name: every[name] for name in CHANNELS}
         wall_time = time.perf_counter() - started
         scenario = setup.scenario
-        gains = setup.controller.gains
+        gains = setup.law.gains
         meta = {
             "scenario": scenario.name,
             "description": scenario.description,
@@ -395,14 +396,14 @@ def _passivity_terms(
         target_velocity: True target velocities [m/s]. Shape (N, 3).
         estimated_velocity: Estimated target velocities [m/s]. Shape (N, 3).
     """
-    scale = setup.controller.gains.feature_scale
+    scale = setup.law.gains.feature_scale
     jacobian, object_jacobian = jacobians / scale, object_jacobians / scale
     seen = np.isfinite(jacobian).all(axis=(1, 2)) & np.isfinite(object_jacobian).all(axis=(1, 2))
     samples, _, n = jacobian.shape
     passivity_input = np.full((samples, n), np.nan)
     lambda_min = np.full(samples, np.nan)
     for i in np.flatnonzero(seen):
-        pinv = setup.controller.pseudo_inverse(jacobian[i])[0]
+        pinv = setup.law.pseudo_inverse(jacobian[i])[0]
         passivity_input[i] = v[i] + pinv @ (object_jacobian[i] @ target_velocity[i])
     if seen.any():
         gram = jacobian[seen] @ jacobian[seen].transpose(0, 2, 1)
@@ -431,17 +432,17 @@ def _true_passivity_terms(
         derived: Channels of :func:`_derived_in_one_pass`.
         v: Actuated velocities. Shape (N, n).
     """
-    scale = setup.controller.gains.feature_scale
+    scale = setup.law.gains.feature_scale
     jacobian = derived.pop("jacobian_true") / scale
     object_jacobian = derived.pop("object_jacobian_true") / scale
-    k = setup.controller.feature_gains(setup.features.size)
+    k = setup.law.feature_gains(setup.features.size)
     error = (derived["xi_true"] - setup.xi_d) / scale
     magnitude = np.abs(error)
     nu = np.einsum("sij,si->sj", jacobian, k * error / (1.0 + magnitude))
     storage = np.sum(k * (magnitude - np.log1p(magnitude)), axis=1)
     inputs = np.full_like(v, np.nan, dtype=float)
     for i in np.flatnonzero(np.isfinite(jacobian).all(axis=(1, 2))):
-        pinv = setup.controller.pseudo_inverse(jacobian[i])[0]
+        pinv = setup.law.pseudo_inverse(jacobian[i])[0]
         inputs[i] = v[i] + pinv @ (object_jacobian[i] @ derived["target_velocity"][i])
     return {"nu_true": nu, "storage_true": storage, "passivity_input_true": inputs}
 

@@ -1,11 +1,13 @@
-"""The closed loop of the paper's Fig. 3, simulated.
+"""The closed loop of the paper's Fig. 3, simulated around the public controller.
 
-Data flows one way at every control step: camera frames (after latency) and the robot's
-sensors (encoders, wheel odometry, laser: :mod:`pbvs_pin.sim.sensing`) -> feature error,
-``J`` and ``J_o`` from the *controller's* model -> target velocity estimate -> secondary
-objectives -> kinematic controller (eq. 34) -> dynamic compensation (eq. 20) -> plant (eq. 1
-with the *true* model), integrated at its own step. The camera sees the true scene from the
-true camera pose; the controller only ever gets the frames and the sensors' readings.
+The loop holds the true world (the plant, the target, the obstacles) and the robot's sensors;
+:class:`pbvs_pin.Controller` is the control. At every control step the loop hands the
+controller what a robot's driver would: the encoder and odometry readings with the time
+(:mod:`pbvs_pin.sim.sensing`), the camera frame that arrived (after its latency, with its
+capture time, or "target not visible"; :mod:`pbvs_pin.sim.vision`) and the laser reading
+when a scan arrived, and applies the velocity references it returns to the plant (eq. 1 with
+the *true* model), integrated at its own step. The camera sees the true scene from the true
+camera pose; the controller only ever gets the frames and the sensors' readings.
 """
 
 from __future__ import annotations
@@ -17,19 +19,17 @@ from pathlib import Path
 
 import numpy as np
 
+from pbvs_pin.camera_frame import CameraFrame
 from pbvs_pin.compile_cache import compile_notice
-from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
-from pbvs_pin.control.step import FusedControlStep
-from pbvs_pin.control.upright import upright_row
+from pbvs_pin.control.tracking import TargetTracker
 from pbvs_pin.exceptions import RunInterrupted
-from pbvs_pin.plant import Plant
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog, RunRecorder
 from pbvs_pin.sim.obstacles import footprint_points
-from pbvs_pin.sim.perception import Perception
 from pbvs_pin.sim.scenario import Scenario
 from pbvs_pin.sim.sensing import Sensing
 from pbvs_pin.sim.setup import Setup, build
+from pbvs_pin.sim.vision import Frame
 
 
 @dataclass(frozen=True)
@@ -80,6 +80,8 @@ def simulate(
         RunInterrupted: On Ctrl-C; it carries the run so far, its ``meta["interrupted"]``
             true (None when nothing was recorded yet).
     """
+    if progress:
+        compile_notice()
     setup = build(scenario, robot)
     plant_dt = scenario.simulation.plant_dt
     substeps = max(1, round(1.0 / (scenario.controller.rate * plant_dt)))
@@ -90,18 +92,9 @@ def simulate(
     footprint = footprint_points(scenario.platform.length, scenario.platform.width)
     sensing = Sensing(setup)
     recorder = RunRecorder(setup, footprint, sensing)
-    perception = Perception(setup)
+    control, sensor = setup.control, setup.sensor
+    exact_velocity = scenario.estimator.kind == "exact"
     laser_reading = (float("inf"), 0.0)
-    laser_array = np.array(laser_reading)
-    fused = None
-    if FusedControlStep.supports(setup.controller, setup.objectives):
-        fused = FusedControlStep(
-            setup.model, setup.features, setup.xi_d, setup.controller, setup.compensator,
-            setup.objectives,
-        )  # fmt: skip
-    shared = fused is not None and shares_dynamics(setup)
-    if progress:
-        compile_notice()
     started = wallclock.perf_counter()
     bar = _progress(steps, progress, progress_label(setup))
     try:
@@ -110,49 +103,27 @@ def simulate(
             plant = setup.plant
             sensing.read(t)
             q, v = sensing.q, sensing.v  # what the controller knows of the robot
-            if setup.sensor.capture_due(t):  # the true camera sees the true target
-                setup.sensor.capture(
-                    t, setup.robot.camera_pose(plant.q), setup.target.centres(t), q
-                )
-            setup.sensor.stamp(t, q)  # frames whose exposure delay has elapsed
-            frame = setup.sensor.deliver(t)
-            if frame is not None:
-                perception.take(frame)
+            if sensor.capture_due(t):  # the true camera sees the true target
+                sensor.capture(t, setup.robot.camera_pose(plant.q), setup.target.centres(t), q)
+            sensor.stamp(t, q)  # frames whose exposure delay has elapsed
+            frame = sensor.deliver(t)
+            scan = None
             if setup.obstacles and step % laser_every == 0:
                 laser_reading = sensing.laser_reading()
-                laser_array = np.array(laser_reading)
-            measurement = perception.current(t, q)
-            seen = measurement is not None
-            if fused is not None and seen:
-                _, v_ref, v2 = fused.step(
-                    q, v, measurement, perception.velocity(t), laser_array, control_dt
-                )
-            else:
-                if fused is not None:
-                    fused.restart_derivative()  # the command derivative restarts after a loss
-                output, jacobians = _control_step(
-                    setup, perception, q, laser_reading, t, control_dt
-                )
-                v_ref, v2 = setup.compensator.step(q, v, output.u, control_dt)
+                scan = laser_reading
+            velocity = setup.target.motion.velocity(t) if exact_velocity else None
+            command = control.step(t, q, v, _handed_over(setup, frame), scan, velocity)
             if step % log_every == 0:
-                if fused is not None and seen:
-                    output, jacobians = fused.output()
+                output, jacobians = control.diagnostics()
                 recorder.record(
-                    t=t,
-                    output=output,
-                    jacobians=jacobians,
-                    perception=perception,
-                    v_ref=v_ref,
-                    v2=v2,
-                    laser=laser_reading,
-                )
+                    t=t, output=output, jacobians=jacobians, tracker=control.tracker,
+                    target_velocity=command.target_velocity, v_ref=command.v_ref,
+                    v2=command.v2, laser=laser_reading,
+                )  # fmt: skip
                 if observer is not None:
-                    observer(_snapshot(setup, perception, t))  # fmt: skip
-            terms = fused.terms_at(plant.q, plant.v) if shared and seen else None
-            if terms is not None:
-                plant.step(v_ref, terms)  # on the controller's Pinocchio terms: the same numbers
-            for _ in range(substeps - (terms is not None)):
-                plant.step(v_ref)
+                    observer(_snapshot(setup, control.tracker, t))
+            for _ in range(substeps):
+                plant.step(command.v_ref)
             if bar is not None:
                 bar.update(1)
     except KeyboardInterrupt as interrupt:
@@ -165,26 +136,25 @@ def simulate(
     return recorder.finish(started)
 
 
-def shares_dynamics(setup: Setup) -> bool:
-    """Whether the plant may step on the controller's Pinocchio terms.
+def _handed_over(setup: Setup, frame: Frame | None) -> CameraFrame | None:
+    """The simulated camera's frame as a driver hands it over (points, depths or not visible).
 
-    Only a Pinocchio plant whose model equals the controller's, value for value (no
-    ``model_error``), and with the same ``S``: then ``crba``, ``nonLinearEffects`` and the
-    gravity at the same ``(q, v)`` are the same numbers, computed once per control step.
+    The depths come from the apparent diameters, ``z = f D / d``.
     """
-    plant = setup.plant
-    return (
-        isinstance(plant, Plant)
-        and setup.model.model == plant.robot.model
-        and np.array_equal(setup.model.selection, plant.robot.selection)
+    if frame is None:
+        return None
+    if not frame.visible:
+        return CameraFrame.not_visible(frame.time)
+    return CameraFrame.from_diameters(
+        frame.time, frame.points, frame.diameters, setup.model.camera, setup.target.diameter
     )
 
 
-def _snapshot(setup: Setup, perception: Perception, t: float) -> Snapshot:
+def _snapshot(setup: Setup, tracker: TargetTracker, t: float) -> Snapshot:
     """The instant's true state and what the camera saw."""
-    seen = perception.measurement is not None and not perception.lost
-    points = perception.measurement.points if seen else np.full((2, 2), np.nan)
-    xi = setup.features.features(perception.measurement) if seen else np.full(3, np.nan)
+    seen = tracker.measurement is not None and not tracker.lost
+    points = tracker.measurement.points if seen else np.full((2, 2), np.nan)
+    xi = setup.features.features(tracker.measurement) if seen else np.full(3, np.nan)
     return Snapshot(t, setup.plant.q.copy(), setup.target.centres(t), xi, setup.xi_d, points)
 
 
@@ -202,30 +172,3 @@ def _progress(steps: int, enabled: bool, name: str):
     from tqdm import tqdm
 
     return tqdm(total=steps, desc=name, unit="step", leave=False, mininterval=0.5)
-
-
-def _control_step(
-    setup: Setup,
-    perception: Perception,
-    q: np.ndarray,
-    laser: tuple[float, float],
-    t: float,
-    dt: float,
-):
-    """Kinematic controller on the current measurement; zero command when there is none."""
-    model = setup.model
-    secondary_state = SecondaryInput(model.arm_positions(q), laser[0], laser[1], dt)
-    secondary = secondary_vector(setup.objectives, secondary_state, model.n_base, model.n)
-    measurement = perception.current(t, q)
-    if measurement is None:
-        return setup.controller.zero_output(setup.features.size), None
-    camera_jacobian = model.camera_jacobian_unchecked(q)
-    rotation = model.data.oMf[model.camera_frame_id].rotation
-    xi, jacobian, object_jacobian = setup.features.jacobians_from_measurement(
-        model.camera, measurement, camera_jacobian, rotation.T
-    )
-    output = setup.controller.step(
-        xi - setup.xi_d, jacobian, object_jacobian, perception.velocity(t), secondary,
-        upright_row(rotation, camera_jacobian),
-    )  # fmt: skip
-    return output, (jacobian, object_jacobian)

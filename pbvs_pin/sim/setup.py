@@ -15,19 +15,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from pbvs_pin.control.compensation import Compensation, DynamicCompensator
-from pbvs_pin.control.ibvs import ClassicIbvs
-from pbvs_pin.control.kinematic import PassivityController, ServoGains
-from pbvs_pin.control.secondary import (
-    ArmPosture,
-    JointLimitAvoidance,
-    ObstacleAvoidance,
-    SecondaryObjective,
-)
-from pbvs_pin.control.upright import delayed_margin
-from pbvs_pin.estimation import AlphaBetaFilter
+from pbvs_pin.control.kinematic import PassivityController
+from pbvs_pin.control.secondary import SecondaryObjective
+from pbvs_pin.control.settings import ControllerSettings
+from pbvs_pin.controller import Controller
+from pbvs_pin.estimation import VelocityEstimator
 from pbvs_pin.features import TwoSphereFeatures
-from pbvs_pin.manipulability import max_manipulability_posture
 from pbvs_pin.plant import Plant
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.robot_spec import arm_posture
@@ -79,24 +72,52 @@ def solve_target_start(
 
 @dataclass
 class Setup:
-    """Everything a run is built from (true and controller-side objects)."""
+    """Everything a run is built from: the true robot and world, and the controller.
+
+    Attributes:
+        control: The public controller the loop steps (:class:`pbvs_pin.Controller`).
+    """
 
     scenario: Scenario
     robot: MobileManipulator
     model: MobileManipulator
     plant: Plant | MujocoPlant
     target: TwoSphereTarget
-    features: TwoSphereFeatures
     sensor: CameraSensor
-    controller: PassivityController
-    compensator: DynamicCompensator
-    objectives: list[SecondaryObjective]
+    control: Controller
     obstacles: list[Obstacle]
     laser: Laser
-    posture_target: np.ndarray
-    xi_d: np.ndarray
-    estimator: AlphaBetaFilter
     robot_given: bool = False
+
+    @property
+    def features(self) -> TwoSphereFeatures:
+        """The controller's feature set."""
+        return self.control.features
+
+    @property
+    def xi_d(self) -> np.ndarray:
+        """Desired features [px]. Shape (r,)."""
+        return self.control.xi_d
+
+    @property
+    def posture_target(self) -> np.ndarray:
+        """``theta_d`` of eq. (19). Shape (n_arm,)."""
+        return self.control.posture_target
+
+    @property
+    def law(self) -> PassivityController:
+        """The kinematic controller (eq. 34 or the IBVS baseline)."""
+        return self.control.law
+
+    @property
+    def objectives(self) -> list[SecondaryObjective]:
+        """The controller's secondary objectives."""
+        return self.control.objectives
+
+    @property
+    def estimator(self) -> VelocityEstimator:
+        """The controller's target-velocity filter."""
+        return self.control.tracker.estimator
 
     def robot_meta(self) -> dict[str, Any]:
         """The robot in a log's meta: ``robot`` (a label) and ``robot_table``.
@@ -155,27 +176,15 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
     sensor = CameraSensor(
         camera, target.diameter, spec.rate, latency, spec.noise_px, rng, faults, fault_rng
     )
-    controller = _controller(scenario, model)
-    comp = scenario.compensation
-    compensator = DynamicCompensator(
-        model,
-        ServoModel.from_robot(model),
-        Compensation(comp.mode),
-        _vector(scenario, "compensation.k_d", comp.k_d, model.n),
-        comp.derivative_time_constant,
-    )
-    posture_target = _posture_target(scenario, model)
-    objectives = _objectives(scenario, model, posture_target)
+    control = Controller(model, ControllerSettings.from_scenario(scenario), announce=False)
     laser_spec = scenario.laser
     laser = Laser(
         laser_spec.field_of_view, int(laser_spec.beams), laser_spec.max_range,
         laser_spec.range_noise, laser_spec.range_resolution,
     )  # fmt: skip
     return Setup(
-        scenario, robot, model, plant, target, features, sensor, controller, compensator,
-        objectives, list(scenario.obstacles), laser, posture_target,
-        np.asarray(target_spec.xi_d, dtype=float),
-        scenario.estimator.filter(), robot_given,
+        scenario, robot, model, plant, target, sensor, control, list(scenario.obstacles), laser,
+        robot_given,
     )  # fmt: skip
 
 
@@ -215,95 +224,6 @@ def _start(scenario: Scenario, robot: MobileManipulator) -> np.ndarray:
     return robot.with_arm_positions(
         q0, arm_posture(scenario.source, "robot.initial_arm", robot, arm)
     )
-
-
-def _vector(scenario: Scenario, field: str, values: tuple, n: int) -> np.ndarray:
-    """A per-dof vector given as 1 or n values, or a ScenarioError."""
-    array = np.asarray(values, dtype=float)
-    if array.size == 1:
-        return np.full(n, float(array[0]))
-    if array.size != n:
-        raise scenario.error(field, f"expected 1 or {n} values for this robot, got {array.size}")
-    return array
-
-
-def _controller(scenario: Scenario, model: MobileManipulator) -> PassivityController:
-    """The kinematic controller, its gains fitted to the model's dof."""
-    spec = scenario.controller
-    n = model.n
-    camera = scenario.camera
-    # the loop-gain net's sample: a camera frame, or a control step if that is longer; its
-    # margin shrinks with the frames' latency unless each frame is predicted up to now
-    period = max(1.0 / camera.rate, 1.0 / spec.rate)
-    delay = 0.0 if scenario.estimator.predict else camera.delivery_latency / period
-    gains = ServoGains(
-        k=tuple(_vector(scenario, "controller.k", spec.k, 3)),
-        k1=tuple(_vector(scenario, "controller.k1", _per_dof(spec.k1, model), n)),
-        k2=tuple(_vector(scenario, "controller.k2", _per_dof(spec.k2, model), n)),
-        feature_scale=spec.feature_scale,
-        weights=_weights(scenario, spec.weights, n),
-        use_pseudoinverse_feedback=spec.feedback == "pseudoinverse",
-        upright=spec.upright,
-        upright_rate=spec.upright_rate,
-        camera_period=period,
-        loop_gain_margin=delayed_margin(spec.loop_gain_margin, delay),
-    )
-    if spec.law == "ibvs":
-        return ClassicIbvs(spec.ibvs_gain, model.velocity_limits, gains)
-    return PassivityController(gains, model.velocity_limits)
-
-
-def _per_dof(values: tuple, model: MobileManipulator) -> tuple:
-    """Gains written for the paper's robot (2 base + 3 arm values) fit any robot.
-
-    The base values are kept and the last arm value is repeated for every arm joint.
-    """
-    if len(values) == 5 and model.n != 5 and model.n_base == 2:
-        return (*values[:2], *([values[-1]] * model.n_arm))
-    return values
-
-
-def _weights(scenario: Scenario, weights: tuple, n: int) -> tuple:
-    """``W`` as a diagonal or a full matrix, checked for size (the section checked the rest)."""
-    if weights and isinstance(weights[0], tuple):
-        if len(weights) != n or any(len(row) != n for row in weights):
-            raise scenario.error("controller.weights", f"expected a {n} x {n} matrix")
-        return tuple(tuple(row) for row in weights)
-    return tuple(_vector(scenario, "controller.weights", weights, n))
-
-
-def _objectives(
-    scenario: Scenario, model: MobileManipulator, posture_target: np.ndarray
-) -> list[SecondaryObjective]:
-    spec = scenario.secondary
-    objectives: list[SecondaryObjective] = []
-    if spec.obstacle_avoidance:
-        objectives.append(
-            ObstacleAvoidance(
-                spec.k_uobs, spec.k_wobs, spec.d0, spec.impedance_mass, spec.impedance_damping
-            )
-        )
-    if spec.posture:
-        objectives.append(ArmPosture(posture_target, spec.k_lambda))
-    if spec.joint_limits:
-        lower, upper = model.arm_position_limits()
-        objectives.append(JointLimitAvoidance(lower, upper))
-    return objectives
-
-
-def _posture_target(scenario: Scenario, model: MobileManipulator) -> np.ndarray:
-    r"""``theta_d`` of eq. (19) [rad or m], shape (n_arm,), as ``secondary.posture_target`` says.
-
-    The paper maximises the arm's manipulability alone. On an arm whose maximum cannot hold
-    the camera on the target (most 6- and 7-joint arms), that posture pulls through the null
-    space for the whole run, and the pull leaks into the features along the weakest direction
-    of the ``J^T`` feedback (the depth): xArm7 Experiment 4 ends 9 px off, TIAGo 2 px. The
-    default ``"home"`` is the most manipulable posture among those in which the camera looks
-    forward, upright (:func:`pbvs_pin.home.compute_home`), which the task can reach.
-    """
-    if scenario.secondary.posture_target == "home":
-        return model.home_arm.copy()
-    return max_manipulability_posture(model)
 
 
 def _check_start_visible(

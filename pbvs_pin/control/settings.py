@@ -1,0 +1,217 @@
+"""What :class:`pbvs_pin.Controller` is built from besides the robot: typed, checked settings.
+
+:class:`ControllerSettings` holds the controller's part of a scenario, the same typed sections
+(:mod:`pbvs_pin.sim.sections`) with the same defaults and checks, so that a controller can be
+built in Python without a scenario file and a scenario's controller is built the same way. The
+functions below fit the settings to a robot (per-dof vectors, ``W``, the objectives, the
+compensator) and name the field at fault when a value does not fit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pbvs_pin.control.compensation import Compensation, DynamicCompensator
+from pbvs_pin.control.ibvs import ClassicIbvs
+from pbvs_pin.control.kinematic import PassivityController, ServoGains
+from pbvs_pin.control.secondary import (
+    ArmPosture,
+    JointLimitAvoidance,
+    ObstacleAvoidance,
+    SecondaryObjective,
+)
+from pbvs_pin.control.upright import delayed_margin
+from pbvs_pin.exceptions import ScenarioError
+from pbvs_pin.manipulability import max_manipulability_posture
+from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.servo import ServoModel
+from pbvs_pin.sim.sections import (
+    CameraSection,
+    CompensationSection,
+    ControllerSection,
+    EstimatorSection,
+    SecondarySection,
+    TargetSection,
+)
+
+if TYPE_CHECKING:
+    from pbvs_pin.sim.scenario import Scenario
+
+HISTORY_SECONDS = 2.0
+"""Default span of the encoder history [s]: the oldest frame the controller can place."""
+
+
+@dataclass(frozen=True)
+class ControllerSettings:
+    """The controller's settings (each section checks its own keys when it is built).
+
+    Attributes:
+        camera: Intrinsics and frame rate (its latency keys are the simulator's; the
+            controller measures the latency of the frames it is given).
+        target: Sphere diameter and desired features ``xi_d``.
+        estimator: Velocity filter, prediction, hold, smoothing.
+        controller: Law, gains, control rate, upright row, loop-gain net.
+        compensation: Rows of eq. (20), ``K_D``, derivative filter.
+        secondary: Obstacle avoidance, posture, joint limits.
+        servo_time_constants: The robot's own velocity loops' lags ``T_i`` [s], one per
+            actuated velocity ``[u, omega, arm joints]``; None: the URDF model's
+            (:meth:`pbvs_pin.ServoModel.from_robot`).
+        history: How far back a frame's capture time may lie [s].
+        source: Where the settings came from, for error messages.
+    """
+
+    camera: CameraSection = field(default_factory=CameraSection)
+    target: TargetSection = field(default_factory=TargetSection)
+    estimator: EstimatorSection = field(default_factory=EstimatorSection)
+    controller: ControllerSection = field(default_factory=ControllerSection)
+    compensation: CompensationSection = field(default_factory=CompensationSection)
+    secondary: SecondarySection = field(default_factory=SecondarySection)
+    servo_time_constants: tuple[float, ...] | None = None
+    history: float = HISTORY_SECONDS
+    source: str = "ControllerSettings"
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> ControllerSettings:
+        """The controller's part of a scenario."""
+        return cls(
+            camera=scenario.camera, target=scenario.target, estimator=scenario.estimator,
+            controller=scenario.controller, compensation=scenario.compensation,
+            secondary=scenario.secondary, source=scenario.source,
+        )  # fmt: skip
+
+    def error(self, field: str, problem: str) -> ScenarioError:
+        """The error for a value that does not fit the robot, naming the dotted field."""
+        return ScenarioError(self.source, field, problem)
+
+    @property
+    def control_period(self) -> float:
+        """``1 / controller.rate`` [s]: the period the controller expects to be stepped at."""
+        return 1.0 / self.controller.rate
+
+    @property
+    def sample_period(self) -> float:
+        """The loop-gain net's sample [s]: a camera frame, or a control step if longer."""
+        return max(1.0 / self.camera.rate, self.control_period)
+
+
+def per_dof(settings: ControllerSettings, field: str, values: tuple, n: int) -> np.ndarray:
+    """A per-dof vector given as 1 or n values, or the error naming ``field``."""
+    array = np.asarray(values, dtype=float)
+    if array.size == 1:
+        return np.full(n, float(array[0]))
+    if array.size != n:
+        raise settings.error(field, f"expected 1 or {n} values for this robot, got {array.size}")
+    return array
+
+
+def loop_gain_margin(settings: ControllerSettings, latency: float) -> float:
+    """The net's margin for frames ``latency`` [s] old on arrival (0 when they are predicted)."""
+    delay = 0.0 if settings.estimator.predict else latency / settings.sample_period
+    return delayed_margin(settings.controller.loop_gain_margin, delay)
+
+
+def kinematic_law(
+    settings: ControllerSettings, model: MobileManipulator, latency: float
+) -> PassivityController:
+    """The kinematic controller, its gains fitted to the model's dof.
+
+    Args:
+        settings: The settings.
+        model: The controller's model of the robot.
+        latency: The frames' expected age on arrival [s], for the loop-gain margin.
+    """
+    spec = settings.controller
+    n = model.n
+    gains = ServoGains(
+        k=tuple(per_dof(settings, "controller.k", spec.k, 3)),
+        k1=tuple(per_dof(settings, "controller.k1", _reference_gains(spec.k1, model), n)),
+        k2=tuple(per_dof(settings, "controller.k2", _reference_gains(spec.k2, model), n)),
+        feature_scale=spec.feature_scale,
+        weights=_weights(settings, spec.weights, n),
+        use_pseudoinverse_feedback=spec.feedback == "pseudoinverse",
+        upright=spec.upright,
+        upright_rate=spec.upright_rate,
+        camera_period=settings.sample_period,
+        loop_gain_margin=loop_gain_margin(settings, latency),
+    )
+    if spec.law == "ibvs":
+        return ClassicIbvs(spec.ibvs_gain, model.velocity_limits, gains)
+    return PassivityController(gains, model.velocity_limits)
+
+
+def _reference_gains(values: tuple, model: MobileManipulator) -> tuple:
+    """Gains written for the paper's robot (2 base + 3 arm values) fit any robot.
+
+    The base values are kept and the last arm value is repeated for every arm joint.
+    """
+    if len(values) == 5 and model.n != 5 and model.n_base == 2:
+        return (*values[:2], *([values[-1]] * model.n_arm))
+    return values
+
+
+def _weights(settings: ControllerSettings, weights: tuple, n: int) -> tuple:
+    """``W`` as a diagonal or a full matrix, checked for size (the section checked the rest)."""
+    if weights and isinstance(weights[0], tuple):
+        if len(weights) != n or any(len(row) != n for row in weights):
+            raise settings.error("controller.weights", f"expected a {n} x {n} matrix")
+        return tuple(tuple(row) for row in weights)
+    return tuple(per_dof(settings, "controller.weights", weights, n))
+
+
+def compensator(settings: ControllerSettings, model: MobileManipulator) -> DynamicCompensator:
+    """Eq. (20) on the model of the robot's velocity loops (the URDF's, or the lags given)."""
+    loop = ServoModel.from_robot(model)
+    if settings.servo_time_constants is not None:
+        lags = per_dof(settings, "servo_time_constants", settings.servo_time_constants, model.n)
+        if not np.all(np.isfinite(lags) & (lags > 0)):
+            raise settings.error("servo_time_constants", f"expected > 0 s, got {lags.tolist()}")
+        loop = replace(loop, time_constants=lags)
+    spec = settings.compensation
+    return DynamicCompensator(
+        model, loop, Compensation(spec.mode),
+        per_dof(settings, "compensation.k_d", spec.k_d, model.n), spec.derivative_time_constant,
+    )  # fmt: skip
+
+
+def posture_target(settings: ControllerSettings, model: MobileManipulator) -> np.ndarray:
+    r"""``theta_d`` of eq. (19) [rad or m], shape (n_arm,), as ``secondary.posture_target`` says.
+
+    The paper maximises the arm's manipulability alone. On an arm whose maximum cannot hold
+    the camera on the target (most 6- and 7-joint arms), that posture pulls through the null
+    space for the whole run, and the pull leaks into the features along the weakest direction
+    of the ``J^T`` feedback (the depth): xArm7 Experiment 4 ends 9 px off, TIAGo 2 px. The
+    default ``"home"`` is the most manipulable posture among those in which the camera looks
+    forward, upright (:func:`pbvs_pin.home.compute_home`), which the task can reach.
+    """
+    if settings.secondary.posture_target == "home":
+        return model.home_arm.copy()
+    return max_manipulability_posture(model)
+
+
+def secondary_objectives(
+    settings: ControllerSettings, model: MobileManipulator, target: np.ndarray
+) -> list[SecondaryObjective]:
+    """The objectives switched on, summed into ``Lambda`` of eq. (16).
+
+    Args:
+        settings: The settings.
+        model: The controller's model of the robot.
+        target: ``theta_d`` of eq. (19) (:func:`posture_target`). Shape (n_arm,).
+    """
+    spec = settings.secondary
+    objectives: list[SecondaryObjective] = []
+    if spec.obstacle_avoidance:
+        objectives.append(
+            ObstacleAvoidance(
+                spec.k_uobs, spec.k_wobs, spec.d0, spec.impedance_mass, spec.impedance_damping
+            )
+        )
+    if spec.posture:
+        objectives.append(ArmPosture(target, spec.k_lambda))
+    if spec.joint_limits:
+        lower, upper = model.arm_position_limits()
+        objectives.append(JointLimitAvoidance(lower, upper))
+    return objectives
