@@ -2,7 +2,7 @@
 
     python docs/build.py [OUT]     # default OUT: docs/_build/html
 
-The hand-written pages (``conf.py``, ``index.rst``) are copied into a temporary source folder
+The hand-written pages (``conf.py`` and every ``.rst`` beside it) are copied into a temporary source folder
 beside three generated ones:
 
 - ``api.rst``: one ``automodule`` per module of the package (autodoc + napoleon, Google style);
@@ -33,7 +33,6 @@ from pbvs_pin.sim.sections import SECTIONS
 from pbvs_pin.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS, SWEEP_TABLE_DOCS
 
 DOCS = Path(__file__).resolve().parent
-HAND_WRITTEN = ("conf.py", "index.rst")
 
 
 def heading(title: str, underline: str) -> str:
@@ -172,8 +171,8 @@ def sweep_page() -> str:
 def generate(source: Path) -> None:
     """Write the hand-written and the generated pages into ``source``."""
     source.mkdir(parents=True, exist_ok=True)
-    for name in HAND_WRITTEN:
-        shutil.copy(DOCS / name, source / name)
+    for path in [DOCS / "conf.py", *DOCS.glob("*.rst")]:  # the hand-written pages
+        shutil.copy(path, source / path.name)
     (source / "api.rst").write_text(api_page())
     (source / "scenario_keys.rst").write_text(scenario_page())
     (source / "sweep_keys.rst").write_text(sweep_page())

@@ -6,8 +6,9 @@
 
 The target's path is yours: edit :func:`target_path` (or feed it from a keyboard or a
 joystick), and the robot follows it live in the browser. The loop is the one of
-``own_loop_pioneer_cyton.py``: :class:`pbvs_pin.Controller` turns image points and encoders
-into velocity references; a first-order lag stands in for the robot's velocity loops.
+``own_loop_pioneer_cyton.py``: :class:`pbvs_pin.Controller` turns camera frames (stamped with
+their capture time) and encoders into velocity references; a first-order lag stands in for the
+robot's velocity loops.
 :class:`pbvs_pin.viz.live.LiveView` draws the robot, the target, the camera frustum with the
 desired (green) and current feature points, and the trails.
 
@@ -71,14 +72,14 @@ def main() -> None:
         for step in range(round(duration * CONTROL_RATE)):
             t = step * dt
             centres = start + target_path(t)  # [m], shape (2, 3)
-            points = depths = None
+            frame = None
             if step % CAMERA_EVERY == 0:
                 image = features.measure(robot, q, centres)  # points [px], depths [m]
-                points, depths = image.points, image.depths
-            command = controller.step(q, v, points, depths, t)
+                frame = pbvs_pin.CameraFrame.seen(t, image.points, image.depths)
+            command = controller.step(t, q, v, frame)
             errors.append(np.abs(command.error).max())
             if live is not None and step % SHOW_EVERY == 0:
-                seen = controller.measurement
+                seen = controller.tracker.measurement
                 live.show(
                     Snapshot(
                         t, q.copy(), centres, command.error + controller.xi_d,
