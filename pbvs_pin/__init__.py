@@ -15,6 +15,8 @@ capture times and laser readings in, velocity references out; built from
 
 from importlib.metadata import PackageNotFoundError, version
 
+# compile_cache (first, as sorted) keys Numba's cache on the kernels' sources
+from pbvs_pin import compile_cache as compile_cache
 from pbvs_pin.base import BaseAdapter, DifferentialDrive, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics, point_interaction_matrix
 from pbvs_pin.camera_frame import CameraFrame

@@ -1,17 +1,76 @@
-"""Whether Numba's on-disk cache already holds the compiled control kernels.
+"""Numba's on-disk cache of the compiled kernels: keyed on every kernel's source, and warm or not.
 
 The kernels (``@njit(cache=True)`` functions of the package's modules) are compiled on their
-first call and cached on disk, next to the modules (``__pycache__``) or under
-``NUMBA_CACHE_DIR``. The first run on a machine therefore spends about
+first call and cached on disk. The first run on a machine therefore spends about
 :data:`COMPILE_SECONDS` compiling before its first step; :func:`compile_notice` says so, once,
-and says nothing when the cache is warm. ``pbvs-pin compile`` does
-the same compile as an explicit step, right after installing (:mod:`pbvs_pin.cli`).
+and says nothing when the cache is warm. ``pbvs-pin compile`` does the same compile as an
+explicit step, right after installing (:mod:`pbvs_pin.cli`).
+
+**The cache key.** Importing this module (the package's ``__init__`` does, before any other
+module) keys the cache. Numba checks a cached kernel against its own source file only, but the
+fused control step compiles into itself kernels of other modules (``inline="always"``): after
+an edit of one of those, a warm cache would run the old code. :func:`use_keyed_cache`
+therefore places the cache in a
+folder named by :func:`cache_key`, a hash of every module that declares a kernel, Numba's
+version and Python's: any edit of any kernel's source makes a new, cold cache. The folder is
+under ``NUMBA_CACHE_DIR`` when it is set, else under the user's cache folder
+(``$XDG_CACHE_HOME`` or ``~/.cache``, then ``pbvs_pin/numba``).
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
+import platform
 import sys
+from pathlib import Path
 from typing import TextIO
+
+PACKAGE = Path(__file__).resolve().parent
+"""The installed package's folder."""
+
+
+def kernel_modules(package: Path = PACKAGE) -> list[Path]:
+    """The package's source files that declare a compiled kernel, in path order."""
+    return sorted(
+        path for path in package.rglob("*.py") if "@njit" in path.read_text(encoding="utf-8")
+    )
+
+
+def cache_key(package: Path = PACKAGE) -> str:
+    """16 hex digits hashing every kernel module's path and text and Numba's and Python's versions.
+
+    It changes whenever any compiled code can.
+    """
+    import numba
+
+    digest = hashlib.sha256(f"{numba.__version__} {platform.python_version()}".encode())
+    for path in kernel_modules(package):
+        digest.update(str(path.relative_to(package)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def cache_root() -> Path:
+    """The folder under which the keyed caches live."""
+    given = os.environ.get("NUMBA_CACHE_DIR")
+    if given:
+        return Path(given)
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "pbvs_pin" / "numba"
+
+
+def use_keyed_cache() -> Path:
+    """Point Numba's cache at ``cache_root() / cache_key()``; return that folder."""
+    from numba.core import config
+
+    folder = cache_root() / cache_key()
+    config.CACHE_DIR = str(folder)
+    return folder
+
+
+KEYED_CACHE = use_keyed_cache()
+"""The folder of this package's compiled kernels (set when the module is imported)."""
 
 COMPILE_SECONDS = 25
 """Measured cold compile time of a run's kernels on a shared 2-core machine [s]."""

@@ -67,7 +67,7 @@ from pbvs_pin.control.tracking import TargetTracker
 from pbvs_pin.control.upright import upright_row
 from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
 from pbvs_pin.features import ImageMeasurement, TwoSphereFeatures
-from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.robot import UNIT_TOLERANCE, MobileManipulator
 from pbvs_pin.validation import as_array
 
 JUMP_SLACK = (0.05, 0.1)
@@ -78,7 +78,7 @@ LATENCY_RESOLUTION = 1e-6
 """The frames' latency is rounded to this [s] before it sets the loop-gain margin."""
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class ServoCommand:
     """What one control step gives.
 
@@ -169,6 +169,7 @@ class Controller:
         self._exact = settings.estimator.kind == "exact"
         self._margin_slot = layout.slot(layout.Settings, "loop_gain_margin")
         self._root_q = _planar_root_slice(robot.model)
+        self._nq = robot.model.nq
         self.reset()
         if announce:
             compile_notice()
@@ -216,7 +217,10 @@ class Controller:
             )
         self.laser = np.array([np.inf, 0.0])
         self._t = -np.inf
-        self._previous_root: np.ndarray | None = None
+        self._previous_root: tuple[float, float, float, float] | None = None
+        limits = self.law.velocity_limits
+        self._jump_limits = (2 * limits[0], 2 * limits[model.n_base - 1])
+        """Twice the platform's speed limits [m/s, rad/s]: beyond, the odometry jumped."""
         self._newest_capture = -np.inf
         self._latency_seen = float("nan")
         self._diagnostics: tuple[ControlOutput, tuple | None] | None = None
@@ -272,12 +276,11 @@ class Controller:
         if frame is not None:
             rejected = self._take(frame.capture_time, shown, t, self._velocity(given))
         velocity = self._velocity(given)
-        measurement = self.tracker.current(t, q, velocity)
-        u, v_ref, v2, error = self._command(q, v, measurement, velocity, dt)
+        u, v_ref, v2, error, seen = self._command(t, q, v, velocity, dt)
         tracker = self.tracker
         return ServoCommand(
             v_ref=v_ref.copy(), u=u.copy(), error=error, target_velocity=velocity,
-            seen=measurement is not None, lost=tracker.lost, predicting=tracker.predicting,
+            seen=seen, lost=tracker.lost, predicting=tracker.predicting,
             frame_age=t - tracker.capture_time, latency=self._latency_seen, rejected=rejected,
             odometry_jumped=jumped, v2=float(v2),
         )  # fmt: skip
@@ -290,11 +293,17 @@ class Controller:
 
     def _checked(self, t, q, v, laser, target_velocity) -> tuple:
         """The inputs as float arrays, checked (see :meth:`step`'s Raises)."""
-        t = float(as_array("t", t, ()))
+        try:
+            t = float(t)
+        except (TypeError, ValueError):
+            t = as_array("t", t, ())  # raises the error that names t
+        if not math.isfinite(t):
+            raise NonFiniteValue("t")
         if not t > self._t:
             raise ControlInputError(f"t = {t:g} s is not after the previous step's ({self._t:g} s)")
-        q = self.model.check_configuration(q)
-        v = self.model.check_velocity(v)
+        model = self.model
+        q = self._array(q, "q") if _plain(q, self._nq) else model.check_configuration(q)
+        v = self._array(v, "v") if _plain(v, model.n) else model.check_velocity(v)
         if laser is not None:
             laser = np.array(laser, dtype=float)
             if laser.shape != (2,):
@@ -309,6 +318,20 @@ class Controller:
                 'use kind = "alpha_beta"'
             )
         return t, q, v, laser, target_velocity
+
+    def _array(self, value: np.ndarray, name: str) -> np.ndarray:
+        """``q`` or ``v``, a float64 vector of the right size, checked finite (angles unit).
+
+        The full checks (which raise the error naming the argument) run only when the quick
+        ones fail.
+        """
+        model = self.model
+        full = model.check_configuration if name == "q" else model.check_velocity
+        if not math.isfinite(float(value.dot(value))):  # NaN or inf anywhere (or absurd)
+            return full(value)
+        if name == "q" and not pin.isNormalized(model.model, value, UNIT_TOLERANCE):
+            return full(value)
+        return value
 
     def _velocity(self, given: np.ndarray | None) -> np.ndarray:
         """``phat_dot``: the given velocity, or the filter's estimate."""
@@ -392,40 +415,38 @@ class Controller:
         """Whether the planar root moved further than the velocity limits allow in ``dt``."""
         if self._root_q is None:
             return False
-        root = q[self._root_q]
-        previous, self._previous_root = self._previous_root, root.copy()
+        x, y, c, s = q[self._root_q].tolist()
+        previous, self._previous_root = self._previous_root, (x, y, c, s)
         if previous is None:
             return False
-        limits = self.law.velocity_limits
-        moved = math.hypot(root[0] - previous[0], root[1] - previous[1])
-        turned = abs(math.atan2(
-            previous[2] * root[3] - previous[3] * root[2],
-            previous[2] * root[2] + previous[3] * root[3],
-        ))  # fmt: skip
-        return moved > 2 * limits[0] * dt + JUMP_SLACK[0] or turned > (
-            2 * limits[self.model.n_base - 1] * dt + JUMP_SLACK[1]
-        )
+        x0, y0, c0, s0 = previous
+        limits = self._jump_limits
+        moved = math.hypot(x - x0, y - y0)
+        turned = abs(math.atan2(c0 * s - s0 * c, c0 * c + s0 * s))
+        return moved > limits[0] * dt + JUMP_SLACK[0] or turned > limits[1] * dt + JUMP_SLACK[1]
 
     def _command(
-        self,
-        q: np.ndarray,
-        v: np.ndarray,
-        measurement: ImageMeasurement | None,
-        velocity: np.ndarray,
-        dt: float,
-    ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
-        """``u``, ``v_ref``, ``V2`` and the feature error: compiled, or the modular classes."""
+        self, t: float, q: np.ndarray, v: np.ndarray, velocity: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, bool]:
+        """``u``, ``v_ref``, ``V2``, the error, and whether anything was servoed on.
+
+        The compiled step when it applies and the target is seen; else the modular classes.
+        """
         fused = self.fused
-        if fused is not None and measurement is not None:
-            self._diagnostics = None
-            u, v_ref, v2 = fused.step(q, v, measurement, velocity, self.laser, dt)
-            return u, v_ref, v2, fused.views.xi - self.xi_d
         if fused is not None:
+            placement = fused.place_camera(q)  # the prediction's camera pose, and the step's
+            measurement = self.tracker.current(t, q, velocity, placement)
+            if measurement is not None:
+                self._diagnostics = None
+                u, v_ref, v2 = fused.step(q, v, measurement, velocity, self.laser, dt)
+                return u, v_ref, v2, fused.views.xi - self.xi_d, True
             fused.restart_derivative()  # the command derivative restarts after a loss
+        else:
+            measurement = self.tracker.current(t, q, velocity)
         output, jacobians = self._modular(q, measurement, velocity, dt)
         self._diagnostics = (output, jacobians)
         v_ref, v2 = self.compensator.step(q, v, output.u, dt)
-        return output.u, v_ref, v2, output.error
+        return output.u, v_ref, v2, output.error, measurement is not None
 
     def _modular(
         self, q: np.ndarray, measurement: ImageMeasurement | None, velocity: np.ndarray, dt: float
@@ -457,6 +478,11 @@ class Controller:
         self.step(self.period, q, v, CameraFrame.not_visible(self.period),
                   target_velocity=np.zeros(3))  # fmt: skip
         self.reset()
+
+
+def _plain(value: object, size: int) -> bool:
+    """Whether ``value`` is already a float64 vector of ``size`` entries (the fast path)."""
+    return isinstance(value, np.ndarray) and value.dtype == np.float64 and value.shape == (size,)
 
 
 def _usable(shown: tuple[np.ndarray, np.ndarray] | None) -> tuple[ImageMeasurement | None, str]:

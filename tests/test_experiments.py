@@ -56,6 +56,19 @@ def _max_final_error(log: RunLog) -> float:
     return float(np.max(np.abs(feature_error(log)[_final_window(log)])))
 
 
+def _assert_sound(log: RunLog) -> None:
+    """The report's sound rule, from the log: target never lost, no joint past its limits,
+    no sustained oscillation (the error's part above the cut-off under 3 px RMS in every
+    5 s window)."""
+    assert not log["target_lost"].any()
+    low, high = log.meta["arm_position_limits"]  # None: a continuous joint
+    lower = np.array([-np.inf if x is None else x for x in low])
+    upper = np.array([np.inf if x is None else x for x in high])
+    assert np.all(log["arm"] >= lower - 0.01) and np.all(log["arm"] <= upper + 0.01)
+    t = log["t"]
+    assert oscillation_rms(t, feature_error(log))[0] < 3.0
+
+
 def _max_error_after_transient(log: RunLog) -> float:
     return float(np.max(np.abs(feature_error(log)[log["t"] >= TRANSIENT_S])))
 
@@ -109,6 +122,7 @@ def test_commands_valid_finite_and_within_limits(runs, name):
 # ---------------------------------------------------------------- each experiment's claim
 def test_experiment1_final_error_below_8px(runs):
     log, _ = runs["experiment1"]
+    _assert_sound(log)
     assert _max_final_error(log) < 8.0
     # Ultimately bounded after the abrupt stop at 20 s: below 8 px from 25 s on.
     after_stop = log["t"] >= 25.0
@@ -119,6 +133,7 @@ def test_experiment1_final_error_below_8px(runs):
 
 def test_experiment2_bounded_while_avoiding_and_posture_recovered(runs):
     log, _ = runs["experiment2"]
+    _assert_sound(log)
     assert _max_error_after_transient(log) < HALF_IMAGE_HEIGHT_PX
     assert np.min(log["clearance"]) > 0.0
     assert np.min(log["obstacle_distance"]) < 1.2  # within d0: avoidance was active
@@ -129,6 +144,7 @@ def test_experiment2_bounded_while_avoiding_and_posture_recovered(runs):
 
 def test_experiment3_bounded_with_kinematic_error(runs):
     log, _ = runs["experiment3"]
+    _assert_sound(log)
     assert load_scenario("experiment3").model_error.kinematic_scale == 1.2
     assert _max_error_after_transient(log) < HALF_IMAGE_HEIGHT_PX
     assert np.min(log["clearance"]) > 0.0
@@ -152,6 +168,7 @@ def test_experiment4_converges_and_storage_does_not_increase(runs):
     2.6e-5 without prediction); without latency and with exact sensing it does not rise (the
     next test). The total rise stays below 5 % of V1(2 s)."""
     log, summary = runs["experiment4"]
+    _assert_sound(log)
     assert _max_final_error(log) < 0.5
     storage = log["storage"]
     steps, bump, v1_transient = _storage_steps(log)

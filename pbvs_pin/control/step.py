@@ -271,6 +271,18 @@ class FusedControlStep:
             not isinstance(controller, ClassicIbvs) and built_in and len(set(kinds)) == len(kinds)
         )
 
+    def place_camera(self, q: np.ndarray) -> pin.SE3:
+        """The joint Jacobians and the camera placement at ``q``: a step's first calls.
+
+        The placement (``world_T_camera``, the same numbers as
+        :meth:`~pbvs_pin.MobileManipulator.camera_placement`) refers to the model's
+        ``pin.Data``, valid until its next Pinocchio call; :meth:`step` must follow at the
+        same ``q``.
+        """
+        model, data, frame = self._pinocchio[:3]
+        pin.computeJointJacobians(model, data, q)
+        return pin.updateFramePlacement(model, data, frame)
+
     def step(
         self,
         q: np.ndarray,
@@ -280,10 +292,10 @@ class FusedControlStep:
         laser: np.ndarray,
         dt: float,
     ) -> tuple[np.ndarray, np.ndarray, float]:
-        """Command and velocity reference for one control period.
+        """Command and velocity reference for one control period, after :meth:`place_camera`.
 
         Args:
-            q: Configuration. Shape (nq,).
+            q: Configuration, the one :meth:`place_camera` was given. Shape (nq,).
             v: Measured actuated velocity. Shape (n,).
             measurement: The newest image measurement.
             target_velocity: ``phat_dot`` [m/s]. Shape (3,).
@@ -295,8 +307,7 @@ class FusedControlStep:
             overwrites. Zero ``u`` when an input is not finite.
         """
         model, data, frame, selection, v_pin = self._pinocchio
-        pin.computeJointJacobians(model, data, q)
-        rotation = pin.updateFramePlacement(model, data, frame).rotation
+        rotation = data.oMf[frame].rotation
         jacobian = pin.getFrameJacobian(model, data, frame, LOCAL)
         mass = pin.crba(model, data, q)
         np.dot(selection, v, out=v_pin)

@@ -29,6 +29,7 @@ capture time and the encoders at that time.
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 
 from pbvs_pin.estimation import VelocityEstimator
 from pbvs_pin.features import ImageMeasurement
@@ -104,13 +105,16 @@ class TargetTracker:
         self._world = in_camera @ pose.rotation.T + pose.translation
         self.estimator.update(pose.act(in_camera.mean(axis=0)), capture_time)
 
-    def current(self, t: float, q: np.ndarray, velocity: np.ndarray) -> ImageMeasurement | None:
+    def current(
+        self, t: float, q: np.ndarray, velocity: np.ndarray, placement: pin.SE3 | None = None
+    ) -> ImageMeasurement | None:
         """What the controller servoes on at ``t``: the measurement, its prediction, or None.
 
         Args:
             t: Time [s].
             q: Encoder configuration now. Shape (nq,).
             velocity: The target velocity to predict with [m/s]. Shape (3,).
+            placement: The model's camera placement at ``q`` if already computed.
         """
         age = t - self.capture_time
         # with a hold, a frame older than it is no longer used, even if none arrived since
@@ -119,16 +123,23 @@ class TargetTracker:
         fresh = not self.lost and not expired
         self.predicting = self.measurement is not None and (held or (self.predict and fresh))
         if self.predicting:
-            self.used = self.predicted(t, q, velocity)
+            self.used = self.predicted(t, q, velocity, placement)
         else:
             self.used = self.measurement if fresh else None
         return self.used
 
-    def predicted(self, t: float, q: np.ndarray, velocity: np.ndarray) -> ImageMeasurement:
-        """The newest measurement brought up to ``(t, q)`` along eq. (3) (module docstring)."""
+    def predicted(
+        self, t: float, q: np.ndarray, velocity: np.ndarray, placement: pin.SE3 | None = None
+    ) -> ImageMeasurement:
+        """The newest measurement brought up to ``(t, q)`` along eq. (3) (module docstring).
+
+        ``placement`` is the model's camera placement at ``q`` if already computed.
+        """
         model = self.model
         world = self._world + velocity * (t - self.capture_time)
-        image, depths = model.camera.project_world(model.camera_placement(q), world)
+        if placement is None:
+            placement = model.camera_placement(q)
+        image, depths = model.camera.project_world(placement, world)
         return ImageMeasurement(image, depths)
 
     def forget(self) -> None:
