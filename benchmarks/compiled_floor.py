@@ -47,10 +47,11 @@ from numba import njit
 
 from pbvs_pin.camera import project_points
 from pbvs_pin.control.step import FusedControlStep
+from pbvs_pin.control.tracking import TargetTracker
+from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.servo import packed_servo_step
 from pbvs_pin.sim.log import RunRecorder
 from pbvs_pin.sim.loop import simulate
-from pbvs_pin.sim.perception import Perception
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.sensing import Sensing, sensing_step
 from pbvs_pin.sim.setup import build
@@ -235,12 +236,13 @@ def kernel_arithmetic() -> dict[str, float]:
         sensing._joints, sensing._arm, sensing._constants, sensing._state.copy(),
         sensing._odometry_state.copy(), np.empty(q.shape[0]), np.empty(setup.robot.n),
     )  # fmt: skip
-    perception = Perception(setup)
-    setup.sensor.capture(0.0, setup.robot.camera_pose(q), setup.target.centres(0.0), q)
-    perception.take(setup.sensor.deliver(1.0))
+    tracker = setup.control.tracker
+    placement = setup.model.camera_pose(q)
+    points, depths = setup.model.camera.project_world(placement, setup.target.centres(0.0))
+    tracker.take(ImageMeasurement(points, depths), 0.0, q, np.zeros(3))
     pose = setup.model.camera_placement(q)
     projection = (
-        perception._world, pose.translation.copy(), pose.rotation.copy(),
+        tracker._world, pose.translation.copy(), pose.rotation.copy(),
         setup.model.camera.focal_px, 0.0,
     )  # fmt: skip
     kernels = {"servo": (packed_servo_step, servo), "sensing": (sensing_step, reading)}
@@ -256,7 +258,7 @@ def kernel_arithmetic() -> dict[str, float]:
 
 EVENTS = {
     "camera: capture a frame (true camera pose, projection, noise)": (CameraSensor, "capture"),
-    "camera: take a delivered frame (back-projection, filter)": (Perception, "take"),
+    "camera: take a delivered frame (back-projection, filter)": (TargetTracker, "take"),
     "log: the step's diagnostics": (FusedControlStep, "output"),
     "log: record a row": (RunRecorder, "record"),
     "log: derive the channels at the end": (RunRecorder, "finish"),

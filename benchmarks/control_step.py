@@ -15,7 +15,7 @@ with the camera on its link 3 ... 7: 3 ... 7 arm joints), and where the loop's t
 reference robot: the Pinocchio calls per simulated millisecond that no speed-up removes (the
 floor), the rest of the control step and of the plant step, the sensors' reading
 (:class:`~pbvs_pin.sim.sensing.Sensing`), the prediction of the newest frame to now
-(:class:`~pbvs_pin.sim.perception.Perception`), and everything else in the loop. Medians over
+(:class:`~pbvs_pin.control.tracking.TargetTracker`), and everything else in the loop. Medians over
 repeats: the machine is shared. ``benchmarks/compiled_floor.py`` measures what the step and
 the loop would cost with the Pinocchio calls made from compiled code.
 """
@@ -30,9 +30,9 @@ import pinocchio as pin
 from numba import njit
 
 from pbvs_pin.control.step import FusedControlStep, fused_control_step
+from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.plant import Plant
-from pbvs_pin.sim.loop import shares_dynamics, simulate
-from pbvs_pin.sim.perception import Perception
+from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.sensing import Sensing
 from pbvs_pin.sim.setup import build
@@ -98,20 +98,21 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, flo
     """
     scenario = load_scenario("experiment1").with_values(**{"robot.name": robot_name})
     setup = build(scenario)
-    perception = Perception(setup)
     q = setup.plant.q
-    setup.sensor.capture(0.0, setup.robot.camera_pose(q), setup.target.centres(0.0), q)
-    perception.take(setup.sensor.deliver(1.0))  # after the frame latency
-    measurement = perception.measurement
+    measurement = ImageMeasurement(
+        *setup.model.camera.project_world(setup.model.camera_pose(q), setup.target.centres(0.0))
+    )
     v = np.full(setup.robot.n, 0.05)
     dt = 1e-3
+    control = setup.control
     fused = FusedControlStep(
-        setup.model, setup.features, setup.xi_d, setup.controller, setup.compensator,
+        setup.model, setup.features, setup.xi_d, setup.law, control.compensator,
         setup.objectives,
     )  # fmt: skip
     laser, target_velocity = np.array([np.inf, 0.0]), np.zeros(3)
 
     def step() -> None:
+        fused.place_camera(q)
         fused.step(q, v, measurement, target_velocity, laser, dt)
 
     model, data = setup.model.model, setup.model.data
@@ -169,8 +170,8 @@ def panda_truncated(joints: int) -> dict[str, object]:
     }  # fmt: skip
 
 
-def plant_step_times(robot_name: str) -> tuple[float, float, float]:
-    """Median plant step, its Pinocchio calls and ``pin.integrate`` alone [s], interleaved."""
+def plant_step_times(robot_name: str) -> tuple[float, float]:
+    """Median plant step and its Pinocchio calls [s], interleaved."""
     setup = build(load_scenario("experiment1").with_values(**{"robot.name": robot_name}))
     plant = setup.plant
     assert isinstance(plant, Plant)
@@ -186,17 +187,14 @@ def plant_step_times(robot_name: str) -> tuple[float, float, float]:
         plant_step_calls(model, data, q0, displacement, displacement)
 
     step_time, calls, _ = _interleaved(step, pinocchio_calls)
-    integrate = statistics.median(
-        mean_time(lambda: pin.integrate(model, q0, displacement)) for _ in range(REPEATS)
-    )
-    return step_time, calls, integrate
+    return step_time, calls
 
 
 def sensing_and_prediction_times() -> tuple[float, float]:
     """Median time of one sensor reading and of one prediction to now [s], reference robot.
 
     The reading (:meth:`Sensing.read`: encoders, velocity filter, odometry, gyro) on a moving
-    plant; the prediction (:meth:`Perception.current`) of a frame one period old.
+    plant; the prediction (:meth:`TargetTracker.current`) of a frame one period old.
     """
     setup = build(load_scenario("experiment1"))
     sensing, plant = Sensing(setup), setup.plant
@@ -208,15 +206,17 @@ def sensing_and_prediction_times() -> tuple[float, float]:
     reading = statistics.median(
         mean_time(lambda: sensing.read(next(clock))) for _ in range(REPEATS)
     )
-    perception = Perception(setup)
+    tracker = setup.control.tracker
     q = plant.q
-    setup.sensor.capture(0.0, setup.robot.camera_pose(q), setup.target.centres(0.0), q)
-    perception.take(setup.sensor.deliver(1.0))  # after the frame latency
-    t = perception.frame.time + setup.sensor.period
+    placement = setup.model.camera_pose(q)
+    points, depths = setup.model.camera.project_world(placement, setup.target.centres(0.0))
+    tracker.take(ImageMeasurement(points, depths), 0.0, q, np.zeros(3))
+    t = setup.sensor.period
+    velocity = np.zeros(3)
     prediction = statistics.median(
-        mean_time(lambda: perception.current(t, q)) for _ in range(REPEATS)
+        mean_time(lambda: tracker.current(t, q, velocity)) for _ in range(REPEATS)
     )
-    assert perception.predicting
+    assert tracker.predicting
     return reading, prediction
 
 
@@ -246,28 +246,22 @@ def main() -> None:
         n = build(load_scenario("experiment1").with_values(**values)).robot.n
         dof_factor, valid = closed_loop_real_time_factor(5.0, **values)
         print(f"{joints:>10}{n:>4}{1e3 / dof_factor:>17.1f}{dof_factor:>10.1f}x{valid:>7.2f}")
-    reference = load_scenario("experiment1")
-    # the plant reuses the controller's terms only when it is given the plant's own state
-    shared = shares_dynamics(build(reference)) and reference.sensing.exact
-    plant_step, plant_calls, integrate = plant_step_times("pioneer_cyton")
+    plant_step, plant_calls = plant_step_times("pioneer_cyton")
     control_step, control_calls, _, _ = steps["pioneer_cyton"]
     reading, prediction = sensing_and_prediction_times()
-    plant_floor = integrate if shared else plant_calls
+    plant_floor = plant_calls
     loop = 1e-3 / factor
     print("\nwhere a simulated millisecond goes, pioneer_cyton (one control and plant step) [us]:")
     rows = (
         ("control step: its Pinocchio calls", control_calls),
         ("control step: the rest (glue, compiled kernel)", control_step - control_calls),
-        (
-            "plant step: its Pinocchio calls" + (" (integrate only: terms shared)" * shared),
-            plant_floor,
-        ),
+        ("plant step: its Pinocchio calls", plant_floor),
         ("plant step: the rest (glue, compiled servo kernel)", plant_step - plant_calls),
         ("sensing: encoders, velocity filter, odometry, gyro", reading),
         ("perception: the newest frame predicted to now", prediction),
         (
             "loop: the rest (camera, log, Python, cache misses)",
-            loop - control_step - plant_step - reading - prediction + (plant_calls - plant_floor),
+            loop - control_step - plant_step - reading - prediction,
         ),
         ("total (the closed loop above)", loop),
         ("floor: the Pinocchio calls alone", control_calls + plant_floor),
