@@ -48,7 +48,7 @@ as a named attribute, so another plant can apply the same servos.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -257,13 +257,50 @@ class ServoModel:
         )
 
 
+class ServoConstants(NamedTuple):
+    """The servos' constants as :func:`servo_step` reads them, by name.
+
+    In a plant's 1 kHz step they are views of the two buffers of :func:`pack_servos`
+    (:func:`servo_constants`); built directly, any arrays of these shapes.
+    """
+
+    inverse_time_constants: np.ndarray
+    """``1 / T`` [1/s]. Shape (n,)."""
+    damping: np.ndarray
+    """``D``. Shape (n,)."""
+    friction: np.ndarray
+    """``F``. Shape (n,)."""
+    effort: np.ndarray
+    """Torque (force) limits, ``inf`` for none. Shape (n,)."""
+    speed_limits: np.ndarray
+    """Largest reference accepted. Shape (n,)."""
+    gravity_weight: np.ndarray
+    """Diagonal of ``I - G``. Shape (n,)."""
+    integral_rates: np.ndarray
+    """``1 / T_I`` [1/s] (0: no integral action). Shape (n,)."""
+    lower: np.ndarray
+    """Lower limit of each joint with stops. Shape (k,)."""
+    upper: np.ndarray
+    """Its upper limit. Shape (k,)."""
+    selection: np.ndarray
+    """``S``. Shape (nv, n)."""
+    friction_speed: float
+    """``v_s`` [m/s or rad/s]."""
+    h: float
+    """The step [s]."""
+    stop_index: np.ndarray
+    """Actuated index of each joint with stops. Shape (k,), int."""
+    stop_q_index: np.ndarray
+    """Its index in ``q``. Shape (k,), int."""
+
+
 def pack_servos(
     servo: ServoModel, selection: np.ndarray, gravity_weight: np.ndarray, h: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The constants of :func:`servo_step` in one float and one integer array.
+    """:class:`ServoConstants` in one float and one integer array, in its fields' order.
 
     A compiled call from Python costs about 0.07 us per argument, so the plant's 1 kHz step
-    passes these two arrays (read by :func:`packed_servo_step`) instead of 15 arguments.
+    passes these two arrays (named again by :func:`servo_constants`) instead of 14 values.
 
     Args:
         servo: The servos.
@@ -272,30 +309,49 @@ def pack_servos(
         h: Step [s].
 
     Returns:
-        ``params``: ``1 / T``, ``D``, ``F``, effort, speed limits, ``I - G`` (n each), the
-        stops' lower and upper limits (k each), ``S`` row-major (nv n), ``v_s``, ``h``,
-        ``1 / T_I`` (n);
-        ``indices``: ``n, nv, k``, the stops' actuated indices (k), their indices in ``q`` (k).
+        ``params`` (the float fields, ``S`` row-major) and ``indices`` (``n, nv, k``, then
+        the integer fields).
     """
     nv, n = selection.shape
     params = np.concatenate(
         [
-            1.0 / servo.time_constants,
-            servo.damping,
-            servo.friction,
-            servo.effort,
-            servo.speed_limits,
-            gravity_weight,
-            servo.lower,
-            servo.upper,
-            selection.ravel(),
-            [servo.friction_speed, h],
-            servo.integral_rates,
+            1.0 / servo.time_constants, servo.damping, servo.friction, servo.effort,
+            servo.speed_limits, gravity_weight, servo.integral_rates, servo.lower, servo.upper,
+            selection.ravel(), [servo.friction_speed, h],
         ]
-    ).astype(float)
+    ).astype(float)  # fmt: skip
     k = servo.stop_index.shape[0]
     indices = np.concatenate([[n, nv, k], servo.stop_index, servo.stop_q_index])
     return params, indices.astype(np.int64)
+
+
+@njit(cache=True, inline="always")
+def _cut(buffer: np.ndarray, start: int, count: int) -> tuple[np.ndarray, int]:
+    """The ``count`` entries of ``buffer`` from ``start``, and the offset after them."""
+    return buffer[start : start + count], start + count
+
+
+@njit(cache=True, inline="always")
+def servo_constants(params: np.ndarray, indices: np.ndarray) -> ServoConstants:
+    """Named views of :func:`pack_servos`' buffers, cut in :class:`ServoConstants`' order."""
+    n, nv, k = indices[0], indices[1], indices[2]
+    inverse_time_constants, a = _cut(params, 0, n)
+    damping, a = _cut(params, a, n)
+    friction, a = _cut(params, a, n)
+    effort, a = _cut(params, a, n)
+    speed_limits, a = _cut(params, a, n)
+    gravity_weight, a = _cut(params, a, n)
+    integral_rates, a = _cut(params, a, n)
+    lower, a = _cut(params, a, k)
+    upper, a = _cut(params, a, k)
+    selection, a = _cut(params, a, nv * n)
+    stop_index, b = _cut(indices, 3, k)
+    stop_q_index, b = _cut(indices, b, k)
+    return ServoConstants(
+        inverse_time_constants, damping, friction, effort, speed_limits, gravity_weight,
+        integral_rates, lower, upper, selection.reshape((nv, n)), params[a], params[a + 1],
+        stop_index, stop_q_index,
+    )  # fmt: skip
 
 
 @njit(cache=True)
@@ -333,19 +389,14 @@ def packed_servo_step(
     Returns:
         ``v_{k+1}``. Shape (n,).
     """
-    n, nv, k = indices[0], indices[1], indices[2]
-    stop_index, stop_q_index = indices[3 : 3 + k], indices[3 + k : 3 + 2 * k]
+    constants = servo_constants(params, indices)
+    k = constants.stop_q_index.shape[0]
     positions = np.empty(k)
     for s in range(k):
-        positions[s] = q[stop_q_index[s]]
-    a = 6 * n + 2 * k
-    selection = params[a : a + nv * n].reshape((nv, n))
+        positions[s] = q[constants.stop_q_index[s]]
     return servo_step(
-        mass_upper, servo_mass_upper, bias, gravity, selection, params[0:n], params[n : 2 * n],
-        params[2 * n : 3 * n], params[a + nv * n], params[3 * n : 4 * n],
-        params[4 * n : 5 * n], params[5 * n : 6 * n], stop_index, positions,
-        params[6 * n : 6 * n + k], params[6 * n + k : a], v, v_ref, params[a + nv * n + 1],
-        params[a + nv * n + 2 : a + nv * n + 2 + n], integral, v_pin_out, displacement_out,
+        mass_upper, servo_mass_upper, bias, gravity, constants, positions, v, v_ref, integral,
+        v_pin_out, displacement_out,
     )  # fmt: skip
 
 
@@ -355,22 +406,10 @@ def servo_step(
     servo_mass_upper: np.ndarray,
     bias: np.ndarray,
     gravity: np.ndarray,
-    selection: np.ndarray,
-    inverse_time_constants: np.ndarray,
-    damping: np.ndarray,
-    friction: np.ndarray,
-    friction_speed: float,
-    effort: np.ndarray,
-    speed_limits: np.ndarray,
-    gravity_weight: np.ndarray,
-    stop_index: np.ndarray,
+    constants: ServoConstants,
     positions: np.ndarray,
-    lower: np.ndarray,
-    upper: np.ndarray,
     v: np.ndarray,
     v_ref: np.ndarray,
-    h: float,
-    integral_rates: np.ndarray,
     integral: np.ndarray,
     v_pin_out: np.ndarray,
     displacement_out: np.ndarray,
@@ -399,22 +438,10 @@ def servo_step(
         bias: ``pin.nonLinearEffects`` at ``S v``. Shape (nv,).
         gravity: The gravity load the servos cancel (``pin.computeGeneralizedGravity`` of the
             robot they were tuned on). Shape (nv,).
-        selection: ``S``. Shape (nv, n).
-        inverse_time_constants: ``1 / T``. Shape (n,).
-        damping: ``D``. Shape (n,).
-        friction: ``F``. Shape (n,).
-        friction_speed: ``v_s``.
-        effort: Torque limits (``inf`` for none). Shape (n,).
-        speed_limits: Reference limits. Shape (n,).
-        gravity_weight: Diagonal of ``I - G``. Shape (n,).
-        stop_index: Actuated index of each stopped joint. Shape (k,).
-        positions: Their positions now. Shape (k,).
-        lower: Their lower limits. Shape (k,).
-        upper: Their upper limits. Shape (k,).
+        constants: The servos' constants.
+        positions: The stopped joints' positions now. Shape (k,).
         v: Actuated velocity now. Shape (n,).
         v_ref: Velocity reference. Shape (n,).
-        h: Step [s].
-        integral_rates: ``1 / T_I`` [1/s] (0: no integral action). Shape (n,).
         integral: Updated: ``e``, each servo's integral of ``r - v`` [rad or m]. Shape (n,).
         v_pin_out: Written: ``S v_{k+1}``. Shape (nv,).
         displacement_out: Written: ``S v_{k+1} h`` for ``pin.integrate``. Shape (nv,).
@@ -422,6 +449,12 @@ def servo_step(
     Returns:
         ``v_{k+1}``. Shape (n,).
     """
+    selection, inverse_time_constants = constants.selection, constants.inverse_time_constants
+    damping, friction = constants.damping, constants.friction
+    friction_speed = constants.friction_speed
+    effort, speed_limits, h = constants.effort, constants.speed_limits, constants.h
+    gravity_weight, integral_rates = constants.gravity_weight, constants.integral_rates
+    stop_index, lower, upper = constants.stop_index, constants.lower, constants.upper
     n = v.shape[0]
     mass_v, bias_v = actuated_terms(mass_upper, bias, gravity, selection, np.ones(n))
     servo_mass_v = mass_v

@@ -270,7 +270,7 @@ def test_light_joint_with_friction_does_not_chatter(tmp_path):
 
 def test_packed_servo_step_is_servo_step_with_its_constants_packed(damped):
     """Every constant lands where servo_step reads it: stops, friction, limits, S, h."""
-    from pbvs_pin.servo import pack_servos, packed_servo_step, servo_step
+    from pbvs_pin.servo import ServoConstants, pack_servos, packed_servo_step, servo_step
 
     servo = ServoModel.from_robot(damped)
     model, data = damped.model, damped.data
@@ -292,11 +292,17 @@ def test_packed_servo_step_is_servo_step_with_its_constants_packed(damped):
         packed = packed_servo_step(
             mass, tuned, bias, gravity, params, indices, q, v, v_ref, integrals[0], *outputs[:2]
         )
+        constants = ServoConstants(
+            inverse_time_constants=1.0 / servo.time_constants, damping=servo.damping,
+            friction=servo.friction, effort=servo.effort, speed_limits=servo.speed_limits,
+            gravity_weight=servo.gravity_weight, integral_rates=servo.integral_rates,
+            lower=servo.lower, upper=servo.upper, selection=damped.selection,
+            friction_speed=servo.friction_speed, h=DT, stop_index=servo.stop_index,
+            stop_q_index=servo.stop_q_index,
+        )
         direct = servo_step(
-            mass, tuned, bias, gravity, damped.selection, 1.0 / servo.time_constants, servo.damping,
-            servo.friction, servo.friction_speed, servo.effort, servo.speed_limits,
-            servo.gravity_weight, servo.stop_index, q[servo.stop_q_index], servo.lower,
-            servo.upper, v, v_ref, DT, servo.integral_rates, integrals[1], *outputs[2:],
+            mass, tuned, bias, gravity, constants, q[servo.stop_q_index], v, v_ref, integrals[1],
+            *outputs[2:],
         )  # fmt: skip
         np.testing.assert_array_equal(packed, direct)
         np.testing.assert_array_equal(integrals[0], integrals[1])

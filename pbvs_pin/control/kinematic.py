@@ -18,6 +18,7 @@ the robot's velocity limits. Non-finite inputs give a zero command and a flag, n
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -115,6 +116,31 @@ def damped_pseudo_inverse(
     return right, sigma_min, damped
 
 
+class LawOutput(NamedTuple):
+    """What :func:`passivity_law` gives at one step (controller units unless noted)."""
+
+    valid: bool
+    """False when an input was not finite (then ``u`` is zero)."""
+    u: np.ndarray
+    """The command of eq. (34) [m/s, rad/s]. Shape (n,)."""
+    nu: np.ndarray
+    """``nu = J^T K_c e``. Shape (n,)."""
+    feedforward: np.ndarray
+    """``J# J_o phat_dot``. Shape (n,)."""
+    null_space: np.ndarray
+    """``(I - J# J) k1 tanh(k2 Lambda)``, kept upright. Shape (n,)."""
+    storage: float
+    """``V1`` of eq. (7)."""
+    sigma_min: float
+    """Smallest singular value of ``J W^-1/2``."""
+    damped: bool
+    """The pseudo-inverse was damped."""
+    factor: float
+    """The saturation's factor on the raw command (1: not saturated)."""
+    gains: SafetyOutput
+    """What the loop-gain net and the upright projection did."""
+
+
 @njit(cache=True, inline="always")
 def passivity_law(
     error: np.ndarray,
@@ -131,7 +157,7 @@ def passivity_law(
     pseudoinverse_feedback: bool,
     upright: np.ndarray,
     safety: Safety,
-) -> tuple:
+) -> LawOutput:
     r"""Eq. (10)/(34) in controller units, saturated uniformly to the velocity limits.
 
     .. math:: \nu = J^T K_c(\tilde\xi)\tilde\xi,\quad
@@ -159,9 +185,8 @@ def passivity_law(
         safety: The departures' settings; ``camera_period = 0`` turns the loop-gain net off.
 
     Returns:
-        ``(valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor, gains)``
-        with ``gains`` a :class:`~pbvs_pin.control.upright.SafetyOutput`; ``valid`` is False
-        (and ``u`` zero) when an input is not finite.
+        The command and its diagnostics; ``valid`` is False (and ``u`` zero) when an input
+        is not finite.
     """
     n = secondary.shape[0]
     zero = np.zeros(n)
@@ -175,7 +200,7 @@ def passivity_law(
     loop_gain, gain_factor, sigma_phi, upright_weight = np.nan, 1.0, 0.0, 0.0
     if not finite:
         gains = SafetyOutput(loop_gain, gain_factor, sigma_phi, upright_weight)
-        return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0, gains
+        return LawOutput(False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0, gains)
     r = error.shape[0]
     if safety.camera_period > 0.0:  # loop-gain safety net
         largest = 1.0
@@ -210,9 +235,11 @@ def passivity_law(
     feedback = matvec(pinv, kc_error) if pseudoinverse_feedback else nu
     u, factor = saturate(null_space - feedback - feedforward, limits)
     if not all_finite(u):
-        return False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0, gains
+        return LawOutput(False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0, gains)
     storage = storage_function(error, k)
-    return True, u, nu, feedforward, null_space, storage, sigma_min, damped, factor, gains
+    return LawOutput(
+        True, u, nu, feedforward, null_space, storage, sigma_min, damped, factor, gains
+    )
 
 
 def _positive_vector(name: str, value: npt.ArrayLike) -> np.ndarray:
@@ -356,6 +383,23 @@ class ControlOutput:
     upright_weight: float = 0.0
 
 
+def law_output(law: LawOutput, error_px: np.ndarray, upright_angle: float) -> ControlOutput:
+    """A valid step of :func:`passivity_law` as a :class:`ControlOutput`.
+
+    Args:
+        law: The law's output.
+        error_px: ``xi - xi_d`` [px]. Shape (r,).
+        upright_angle: The image's upright angle ``phi`` [rad].
+    """
+    return ControlOutput(
+        u=law.u, error=error_px, storage=law.storage, nu=law.nu, feedforward=law.feedforward,
+        null_space=law.null_space, min_singular_value=law.sigma_min, damped=law.damped,
+        saturated=law.factor < 1.0, scale=law.factor, loop_gain=law.gains.loop_gain,
+        gain_limited=bool(law.gains.gain_factor < 1.0), upright_angle=upright_angle,
+        upright_weight=law.gains.upright_weight,
+    )  # fmt: skip
+
+
 class PassivityController:
     """Eq. (10)/(34) for one robot and one feature set.
 
@@ -429,42 +473,15 @@ class PassivityController:
         r = error_px.shape[0]
         scale = self.gains.feature_scale
         upright = self._upright(upright)
-        valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor, gains = (
-            passivity_law(
-                error_px / scale,
-                jacobian_px / scale,
-                object_jacobian_px / scale,
-                target_velocity,
-                secondary,
-                self.feature_gains(r),
-                self.k1,
-                self.k2,
-                self.weight_inverse,
-                self.damping,
-                self.velocity_limits,
-                self.gains.use_pseudoinverse_feedback,
-                upright,
-                self.safety,
-            )
-        )
-        if not valid:
+        law = passivity_law(
+            error_px / scale, jacobian_px / scale, object_jacobian_px / scale, target_velocity,
+            secondary, self.feature_gains(r), self.k1, self.k2, self.weight_inverse,
+            self.damping, self.velocity_limits, self.gains.use_pseudoinverse_feedback, upright,
+            self.safety,
+        )  # fmt: skip
+        if not law.valid:
             return self.zero_output(r)
-        return ControlOutput(
-            u=u,
-            error=error_px,
-            storage=storage,
-            nu=nu,
-            feedforward=feedforward,
-            null_space=null_space,
-            min_singular_value=sigma_min,
-            damped=damped,
-            saturated=factor < 1.0,
-            scale=factor,
-            loop_gain=gains.loop_gain,
-            gain_limited=bool(gains.gain_factor < 1.0),
-            upright_angle=upright[0],
-            upright_weight=gains.upright_weight,
-        )
+        return law_output(law, error_px, upright[0])
 
     def _upright(self, upright: np.ndarray | None) -> np.ndarray:
         """``[phi, j_phi]`` as a float array; None gives zeros (``j_phi = 0`` removes nothing).

@@ -132,13 +132,12 @@ def fused_control_step(
     safety = Safety(
         setting.upright, setting.upright_rate, setting.camera_period, setting.loop_gain_margin
     )
-    valid, u, nu, feedforward, null_space, storage, sigma_min, damped, factor, gains = (
-        passivity_law(
-            error, jacobian, object_jacobian, target_velocity, secondary, p.k, p.k1, p.k2,
-            p.weight_inverse, p.pseudo_inverse_damping, p.velocity_limits,
-            setting.pseudoinverse_feedback, upright, safety,
-        )
+    law = passivity_law(
+        error, jacobian, object_jacobian, target_velocity, secondary, p.k, p.k1, p.k2,
+        p.weight_inverse, p.pseudo_inverse_damping, p.velocity_limits,
+        setting.pseudoinverse_feedback, upright, safety,
     )  # fmt: skip
+    u = law.u
     # eq. (20), with the low-pass filtered derivative of the command
     if layout.step_scalars(out.scalars).has_previous > 0.0 and dt > 0.0:
         blend = dt / (setting.derivative_time_constant + dt)
@@ -151,23 +150,23 @@ def fused_control_step(
     )  # fmt: skip
     out.u[:] = u
     out.v_ref[:] = v_ref
-    out.nu[:] = nu
-    out.feedforward[:] = feedforward
-    out.null_space[:] = null_space
+    out.nu[:] = law.nu
+    out.feedforward[:] = law.feedforward
+    out.null_space[:] = law.null_space
     layout.store(
         out.scalars,
         layout.StepScalars(
             has_previous=1.0,
-            valid=1.0 if valid else 0.0,
-            storage=storage,
-            sigma_min=sigma_min,
-            damped=1.0 if damped else 0.0,
-            factor=factor,
+            valid=1.0 if law.valid else 0.0,
+            storage=law.storage,
+            sigma_min=law.sigma_min,
+            damped=1.0 if law.damped else 0.0,
+            factor=law.factor,
             v2=v2,
-            loop_gain=gains.loop_gain,
-            gain_factor=gains.gain_factor,
-            sigma_phi=gains.sigma_phi,
-            upright_weight=gains.upright_weight,
+            loop_gain=law.gains.loop_gain,
+            gain_factor=law.gains.gain_factor,
+            sigma_phi=law.gains.sigma_phi,
+            upright_weight=law.gains.upright_weight,
             upright_angle=upright[0],
         ),
     )
