@@ -35,6 +35,35 @@ if TYPE_CHECKING:
 
 
 @njit(cache=True, inline="always")
+def filter_derivative(
+    u: np.ndarray,
+    u_previous: np.ndarray,
+    u_dot: np.ndarray,
+    has_previous: bool,
+    dt: float,
+    time_constant: float,
+) -> None:
+    r"""``udot``: the command's derivative through a first-order low-pass, updated in place.
+
+    .. math:: \dot u \leftarrow \dot u + \frac{T}{\tau + T}
+              \left(\frac{u - u_{prev}}{T} - \dot u\right),\qquad u_{prev} \leftarrow u
+
+    Args:
+        u: The command now. Shape (n,).
+        u_previous: Updated: the previous command. Shape (n,).
+        u_dot: Updated: the filtered derivative. Shape (n,).
+        has_previous: Whether ``u_previous`` holds a command (else ``u_dot`` is kept).
+        dt: Time since the previous command ``T`` [s].
+        time_constant: ``tau`` [s].
+    """
+    if has_previous and dt > 0.0:
+        blend = dt / (time_constant + dt)
+        for j in range(u.shape[0]):
+            u_dot[j] += blend * ((u[j] - u_previous[j]) / dt - u_dot[j])
+    u_previous[:] = u
+
+
+@njit(cache=True, inline="always")
 def compensation_law(
     mass_upper: np.ndarray,
     bias: np.ndarray,
@@ -146,8 +175,10 @@ class DynamicCompensator:
         }[mode]
         self.any_row = bool(self.rows.any())
         self.gain_per_mass, self.gain_constant = loop.loop_gain_coefficients()
-        self.previous_u: np.ndarray | None = None
+        self.previous_u = np.zeros(robot.n)
         self.u_dot = np.zeros(robot.n)
+        self.has_previous = False
+        """Whether ``previous_u`` holds a command yet."""
 
     def step(
         self, q: np.ndarray, v: np.ndarray, u: np.ndarray, dt: float
@@ -167,10 +198,8 @@ class DynamicCompensator:
             ``v_ref`` clipped to the velocity limits (shape (n,)), and ``V2 = |v - u|^2 / 2``
             of eq. (22).
         """
-        if self.previous_u is not None and dt > 0:
-            blend = dt / (self.tau + dt)
-            self.u_dot = self.u_dot + blend * ((u - self.previous_u) / dt - self.u_dot)
-        self.previous_u = u.copy()
+        filter_derivative(u, self.previous_u, self.u_dot, self.has_previous, dt, self.tau)
+        self.has_previous = True
         if not self.any_row:
             error = v - u
             limits = self.robot.velocity_limits

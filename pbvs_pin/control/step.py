@@ -29,7 +29,11 @@ import pinocchio as pin
 from numba import njit
 
 from pbvs_pin.control import layout
-from pbvs_pin.control.compensation import DynamicCompensator, compensation_law
+from pbvs_pin.control.compensation import (
+    DynamicCompensator,
+    compensation_law,
+    filter_derivative,
+)
 from pbvs_pin.control.ibvs import ClassicIbvs
 from pbvs_pin.control.kinematic import ControlOutput, PassivityController, passivity_law
 from pbvs_pin.control.secondary import (
@@ -139,11 +143,10 @@ def fused_control_step(
     )  # fmt: skip
     u = law.u
     # eq. (20), with the low-pass filtered derivative of the command
-    if layout.step_scalars(out.scalars).has_previous > 0.0 and dt > 0.0:
-        blend = dt / (setting.derivative_time_constant + dt)
-        for j in range(n):
-            out.u_dot[j] += blend * ((u[j] - out.u_previous[j]) / dt - out.u_dot[j])
-    out.u_previous[:] = u
+    filter_derivative(
+        u, out.u_previous, out.u_dot, layout.step_scalars(out.scalars).has_previous > 0.0, dt,
+        setting.derivative_time_constant,
+    )  # fmt: skip
     v_ref, v2 = compensation_law(
         mass_upper, bias, gravity, p.selection, p.gain_per_mass, p.gain_constant,
         p.gravity_weight, p.compensated, p.k_d, v, u, out.u_dot, p.velocity_limits,
