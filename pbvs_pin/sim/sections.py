@@ -203,6 +203,30 @@ class CameraSection(Section):
     occlusion_duration: float = key(0.0, "Length of an occlusion [s].", sign=NON_NEGATIVE)
     latency_jitter: float = key(0.0, "Largest extra (uniform) latency [s].", sign=NON_NEGATIVE)
     exposure_delay: float = key(0.0, "Exposure to timestamp delay [s].", sign=NON_NEGATIVE)
+    model: str = key(
+        "points", "points (eq. 2 on the sphere centres) or rendered (MuJoCo draws the scene, a "
+        "detector finds the spheres: pbvs_pin.sim.rendered_camera).",
+        choices=("points", "rendered"),
+    )  # fmt: skip
+    detector: str = key(
+        "colour", "Detector of a rendered camera, by its registered name "
+        "(pbvs_pin.sim.detection.register_detector).",
+    )  # fmt: skip
+    image_noise: float = key(
+        0.0, "Rendered camera: standard deviation of the per-pixel noise [grey levels of 255].",
+        sign=NON_NEGATIVE,
+    )  # fmt: skip
+    exposure_time: float = key(
+        0.0, "Rendered camera: exposure averaged over the control steps it spans, motion blur "
+        "[s] (0: none).", sign=NON_NEGATIVE,
+    )  # fmt: skip
+    light_change_time: float = key(
+        0.0, "Rendered camera: time the lighting changes [s].", sign=NON_NEGATIVE
+    )
+    light_change_scale: float = key(
+        1.0, "Rendered camera: factor on the lights' intensity from light_change_time on (1: "
+        "no change).", sign=NON_NEGATIVE,
+    )  # fmt: skip
 
     @property
     def delivery_latency(self) -> float:
@@ -222,7 +246,8 @@ class CameraSection(Section):
         """Valid, plausible intrinsics (GainError naming the key).
 
         The image is at most :data:`MAX_IMAGE_PX` px a side and the field of view at least
-        :data:`MIN_FIELD_OF_VIEW_DEG` across the larger side; drop_probability < 1.
+        :data:`MIN_FIELD_OF_VIEW_DEG` across the larger side; drop_probability < 1; a
+        registered detector.
         """
         if self.drop_probability >= 1:
             raise GainError(f"expected < 1, got {self.drop_probability:g}", "drop_probability")
@@ -240,6 +265,13 @@ class CameraSection(Section):
                 "focal_px",
             )
         self.intrinsics()
+        if self.model == "rendered":
+            from pbvs_pin.sim.detection import detector_names  # OpenCV only when rendering
+
+            if self.detector not in detector_names():
+                raise GainError(
+                    f"expected one of {detector_names()}, got {self.detector!r}", "detector"
+                )
 
 
 @dataclass(frozen=True)
