@@ -144,10 +144,9 @@ class ColourDetector(Detector):
             ShapeError: If the image is not ``(height, width, 3)`` of the camera.
         """
         camera = self.camera
-        if image.shape != (camera.height, camera.width, 3):
-            raise ShapeError(
-                f"image: expected ({camera.height}, {camera.width}, 3), got {image.shape}"
-            )
+        expected = (camera.height, camera.width, 3)
+        if image.shape != expected:
+            raise ShapeError("image", expected, image.shape)
         hsv = cv2.cvtColor(np.ascontiguousarray(image, dtype=np.uint8), cv2.COLOR_RGB2HSV)
         blobs = [self.largest_blob(hsv, hue) for hue in self.hues]
         if any(blob is None or not self.accepts(blob) for blob in blobs):

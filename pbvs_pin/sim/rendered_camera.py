@@ -149,16 +149,17 @@ class RenderedCamera:
         effects, light = self.effects, self.effects.light(t)
         q = self.plant.q
         image = self.scene.render(q, camera_pose, centres, light)
-        if effects.exposure_time > 0:
-            earlier = [(s, p) for s, p in self.history if s < t - 1e-9]
-            total = image.astype(float)
-            for s, p in earlier:
-                pose = self.robot.camera_pose(p)
-                total += self.scene.render(p, pose, self.target.centres(s), effects.light(s))
-            image = total / (1 + len(earlier))
+        if effects.exposure_time <= 0 and effects.noise <= 0:
+            return image
+        total = image.astype(float)
+        earlier = [(s, p) for s, p in self.history if s < t - 1e-9]
+        for s, p in earlier:
+            pose = self.robot.camera_pose(p)
+            total += self.scene.render(p, pose, self.target.centres(s), effects.light(s))
+        total /= 1 + len(earlier)
         if effects.noise > 0:
-            image = image + effects.noise * self.rng.standard_normal(image.shape)
-        return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+            total += effects.noise * self.rng.standard_normal(total.shape)
+        return np.clip(np.rint(total), 0, 255).astype(np.uint8)
 
     def _record(
         self,
