@@ -196,7 +196,10 @@ class CameraSection(Section):
         None, "Delay from capture to delivery [s]; one frame period (1 / rate) if absent.",
         sign=NON_NEGATIVE, optional=float,
     )  # fmt: skip
-    noise_px: float = key(0.0, "Standard deviation of the pixel noise [px].", sign=NON_NEGATIVE)
+    noise_px: float = key(
+        0.0, "Standard deviation of the pixel noise [px] (points camera; a rendered camera "
+        "has image_noise).", sign=NON_NEGATIVE,
+    )  # fmt: skip
     drop_probability: float = key(0.0, "Chance a frame is lost, in [0, 1).", sign=NON_NEGATIVE)
     occlusion_starts: tuple[float, ...] = key((), "Occlusion starts [s].", sign=NON_NEGATIVE)
     occlusion_rate: float = key(0.0, "Random occlusion episodes per second.", sign=NON_NEGATIVE)

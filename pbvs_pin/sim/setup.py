@@ -136,6 +136,8 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
             robot.camera = camera
         q0 = robot.home()
     model = robot.with_model_error(scenario.model_error.kinematic_scale)
+    if scenario.camera.model == "rendered":
+        import pbvs_pin.sim.render  # noqa: F401  (sets MUJOCO_GL before a MuJoCo plant loads MuJoCo)
     plant = _plant(scenario, robot, q0)
     target_spec = scenario.target
     features = TwoSphereFeatures(target_spec.diameter)
