@@ -229,3 +229,20 @@ def test_target_hidden_by_an_obstacle_is_lost_not_servoed():
     assert summary["detection_error_rms_px"] is None
     assert summary["target_lost_samples"] > 0
     assert np.isnan(log["xi_measured"]).all()
+
+
+def test_obstacle_without_a_drawing_is_refused(robot):
+    from pbvs_pin.exceptions import RenderingUnavailable
+    from pbvs_pin.sim.obstacles import Obstacle
+
+    class Cone(Obstacle):
+        height = 0.5
+
+        def ray_distances(self, origin, directions):
+            return np.full(len(directions), np.inf)
+
+        def signed_distance(self, points):
+            return np.full(len(points), np.inf)
+
+    with pytest.raises(RenderingUnavailable, match="no drawing for obstacle"):
+        SceneRenderer(robot, CAMERA, DIAMETER, [Cone()])
