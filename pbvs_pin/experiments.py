@@ -58,7 +58,8 @@ def run_scenario(
         figures: Also draw the run's figures.
         status: Told what is being written after the simulation ("figures", "replay").
         eye_view: Also write the robot's-eye view (:func:`pbvs_pin.viz.eye_view.write_eye_view`):
-            ``"strip"`` as ``out/eye_view.png``, ``"video"`` as ``out/eye_view.mp4``.
+            ``"strip"`` as ``out/eye_view.png``, ``"video"`` as ``out/eye_view.mp4``; the HTML
+            replay then shows it beside the scene.
 
     Returns:
         The log and its summary.
@@ -96,7 +97,7 @@ def run_scenario(
 
             if status is not None:
                 status("replay")
-            write_run_replay(log, html)
+            write_run_replay(log, html, eye_view=eye_view is not None)
         if eye_view is not None:
             from pbvs_pin.viz.eye_view import write_eye_view
 
