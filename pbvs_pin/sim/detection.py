@@ -82,7 +82,7 @@ class ColourDetector(Detector):
 
     Per sphere: a mask of the pixels whose hue is within ``hue_tolerance`` of the sphere's,
     with saturation and value above their floors (``cv2.inRange`` on ``cv2.COLOR_RGB2HSV``);
-    the largest connected region (``cv2.connectedComponentsWithStats``); its centroid from the
+    the largest region (outer contour, ``cv2.findContours``, filled); its centroid from the
     image moments ``(m10 / m00, m01 / m00)`` (``cv2.moments``) and its apparent diameter
 
     .. math:: d = 2 \sqrt{A / \pi}

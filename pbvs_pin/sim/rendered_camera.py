@@ -112,7 +112,6 @@ class RenderedCamera:
         self.errors: list[np.ndarray] = []  # detected minus projected [u1, v1, u2, v2, d1, d2]
         self.detected: list[bool] = []
         self.projected_inside: list[bool] = []
-        self.image: np.ndarray | None = None  # the last image
 
     def observe(self, t: float) -> None:
         """Remember the plant's configuration at ``t`` for a blurred exposure (none without)."""
@@ -137,8 +136,8 @@ class RenderedCamera:
             Points ``[u, v]`` [px] (shape (2, 2)), apparent diameters [px] (shape (2,)) and
             visibility, as the detector gives them.
         """
-        self.image = self.draw(t, camera_pose, centres)
-        points, diameters, visible = self.detector.detect(self.image)
+        image = self.draw(t, camera_pose, centres)
+        points, diameters, visible = self.detector.detect(image)
         points = np.asarray(points, dtype=float).reshape(2, 2)
         diameters = np.asarray(diameters, dtype=float).reshape(2)
         self._record(t, camera_pose, centres, points, diameters, bool(visible))
