@@ -152,8 +152,8 @@ def test_lighting_change_darkens_the_image_and_the_spheres_stay_found(robot, sce
 def test_motion_blur_averages_the_exposure(robot, scene):
     """The robot at home, seen from its own camera; the target crosses 8 px in the exposure.
 
-    (A blur of more than about a third of the diameter makes the blob too far from round for
-    the default ``min_fill``: the detector then reports the target not visible.)
+    (Over 13 px the blob was too far from round for the default ``min_fill``: the detector
+    then reports the target not visible.)
     """
     home = robot.home()
     eye = robot.camera_pose(home)
