@@ -2,8 +2,8 @@
 
     python docs/build.py [OUT]     # default OUT: docs/_build/html
 
-The hand-written pages (``conf.py`` and every ``.rst`` beside it) are copied into a temporary source folder
-beside three generated ones:
+The hand-written pages (``conf.py`` and every ``.rst`` beside it) are copied into a temporary
+source folder beside three generated ones:
 
 - ``api.rst``: one ``automodule`` per module of the package (autodoc + napoleon, Google style);
 - ``scenario_keys.rst``: every scenario key, generated from the typed sections of

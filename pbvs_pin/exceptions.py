@@ -262,3 +262,7 @@ class SweepIncomplete(PbvsError):
             f"{out}: {unfinished} of {total} runs did not finish ({reason}); the finished runs "
             "are saved: run the same command again to resume"
         )
+
+
+class RenderingUnavailable(PbvsError):
+    """The rendered camera cannot draw: no offscreen OpenGL context, or nothing to draw."""

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from pbvs_pin.catalogue import OTHER_ROBOTS, REFERENCE_ROBOT
-from pbvs_pin.exceptions import OutputError, RunInterrupted
+from pbvs_pin.exceptions import GainError, OutputError, RunInterrupted
 from pbvs_pin.report import (
     CLAIMS,
     COMPENSATION_MODES,
@@ -42,6 +42,7 @@ def run_scenario(
     observer: Callable[[Snapshot], None] | None = None,
     figures: bool = True,
     status: Callable[[str], None] | None = None,
+    eye_view: str | None = None,
 ) -> tuple[RunLog, dict[str, Any]]:
     """Simulate one scenario; write ``log.npz``, ``summary.json`` and figures into ``out``.
 
@@ -56,6 +57,9 @@ def run_scenario(
         observer: Live-view callback, see :func:`pbvs_pin.sim.loop.simulate`.
         figures: Also draw the run's figures.
         status: Told what is being written after the simulation ("figures", "replay").
+        eye_view: Also write the robot's-eye view (:func:`pbvs_pin.viz.eye_view.write_eye_view`):
+            ``"strip"`` as ``out/eye_view.png``, ``"video"`` as ``out/eye_view.mp4``; the HTML
+            replay then shows it beside the scene.
 
     Returns:
         The log and its summary.
@@ -65,12 +69,15 @@ def run_scenario(
             fails (a full disk).
         RunInterrupted: On Ctrl-C during the simulation, after the run so far was saved as
             ``out/log.npz`` (``meta["interrupted"]`` true; no summary, figures or replay).
+        GainError: If ``eye_view`` is neither ``"strip"`` nor ``"video"`` (before simulating).
     """
     from pbvs_pin.viz.figures import plot_run
 
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     check_writable(out, *([html] if html is not None else []))
+    if eye_view not in (None, "strip", "video"):
+        raise GainError(f"eye view: expected 'strip' or 'video', got {eye_view!r}", "eye_view")
     try:
         log = simulate(scenario, progress=progress, observer=observer)
     except RunInterrupted as stop:
@@ -90,7 +97,14 @@ def run_scenario(
 
             if status is not None:
                 status("replay")
-            write_run_replay(log, html)
+            write_run_replay(log, html, eye_view=eye_view is not None)
+        if eye_view is not None:
+            from pbvs_pin.viz.eye_view import write_eye_view
+
+            if status is not None:
+                status("eye view")
+            suffix = "mp4" if eye_view == "video" else "png"
+            write_eye_view(log, out / f"eye_view.{suffix}", eye_view)
     except OSError as err:
         where = err.filename or out
         raise OutputError(str(where), f"cannot write ({err.strerror or err})") from err

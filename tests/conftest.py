@@ -8,6 +8,10 @@ from scratch, without the package under test.
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # before any MuJoCo import: headless rendering
+
 import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from pathlib import Path

@@ -11,6 +11,7 @@ import json
 import numpy as np
 import pytest
 
+from pbvs_pin.sim.detection import ColourDetector, register_detector
 from pbvs_pin.sim.keys import keys_of
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import Scenario, load_scenario
@@ -20,6 +21,9 @@ OBSTACLE = {"secondary.obstacle_avoidance": True, "secondary.d0": 3.0}
 NEAR_LIMIT = {"robot.initial_arm": [0.0, 0.0, 0.55]}  # 0.05 rad below the elbow's upper limit
 ROLLING = {"robot.name": "pioneer_panda"}
 OCCLUDED = {"camera.occlusion_starts": [0.5], "camera.occlusion_duration": 0.5}
+RENDERED = {"camera.model": "rendered"}
+DARK = {**RENDERED, "camera.light_change_scale": 0.05}  # spheres darker than the detector's floor
+register_detector("round_only", lambda camera: ColourDetector(camera, min_fill=0.99))
 
 CASES = {  # key: (context, new value)
     "name": ({}, "renamed"),
@@ -42,6 +46,12 @@ CASES = {  # key: (context, new value)
     "camera.occlusion_duration": ({"camera.occlusion_starts": [0.5]}, 0.5),
     "camera.latency_jitter": ({}, 0.05),
     "camera.exposure_delay": ({}, 0.05),
+    "camera.model": ({}, "rendered"),
+    "camera.detector": (RENDERED, "round_only"),
+    "camera.image_noise": (RENDERED, 20.0),
+    "camera.exposure_time": (RENDERED, 0.03),
+    "camera.light_change_time": (DARK, 1.0),
+    "camera.light_change_scale": (RENDERED, 0.05),
     "target.diameter": ({}, 0.06),
     "target.separation": ({}, 0.12),
     "target.xi0": ({}, [-100.0, 10.0, -90.0]),

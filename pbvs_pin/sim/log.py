@@ -332,6 +332,9 @@ class RunRecorder:
                 "height": setup.robot.camera.height,
             },
             **sensing_meta(every),
+            "detection": (
+                setup.sensor.renderer.detection_meta() if setup.sensor.renderer else None
+            ),
         }
         return RunLog(channels, meta)
 

@@ -10,6 +10,8 @@ them (:func:`summarize`):
 - **sustained oscillation**: the part of the true feature error above
   :data:`OSCILLATION_CUTOFF_HZ`, RMS over the worst :data:`FINAL_WINDOW`-long window after
   the transient (:func:`oscillation_rms`);
+- **detection** (a rendered camera): frames in which the target projects inside the image
+  but is not detected, and the detection error (detected minus projected) RMS and maximum;
 - **saturation**: the fraction of samples in which the controller scaled ``u`` down to the
   velocity limits, and the fraction in which some ``v_ref`` component sits at its limit.
 """
@@ -98,9 +100,51 @@ def summarize(log: RunLog) -> dict[str, Any]:
         "odometry_drift_rad": drift.get("heading"),
         "lateral_slip_rms_mps": slip.get("lateral_speed_rms"),
         "yaw_rate_ratio": slip.get("yaw_rate_ratio"),
+        **detection_summary(log.meta.get("detection")),
         "wall_time_s": float(log.meta["wall_time"]),
         "real_time_factor": float(t[-1] / max(log.meta["wall_time"], 1e-9)),
     }
+
+
+def detection_summary(meta: dict[str, Any] | None) -> dict[str, Any]:
+    """Figures of a rendered camera's detections for a run's summary.
+
+    Args:
+        meta: ``meta["detection"]`` of the log
+            (:meth:`pbvs_pin.sim.rendered_camera.RenderedCamera.detection_meta`).
+
+    Returns:
+        ``detection_frames``; ``detection_missed_frames`` (both centres projected inside the
+        image, not detected: occluded, or refused); ``detection_error_rms_px`` and
+        ``detection_error_max_px`` over the detected points' ``[du, dv]``;
+        ``detection_diameter_error_rms_px``. All None for the point camera (``meta`` None).
+    """
+    names = (
+        "detection_frames", "detection_missed_frames", "detection_error_rms_px",
+        "detection_error_max_px", "detection_diameter_error_rms_px",
+    )  # fmt: skip
+    if meta is None:
+        return dict.fromkeys(names)
+    errors = np.array(
+        [[np.nan if x is None else x for x in row] for row in meta["error_px"]], dtype=float
+    ).reshape(-1, 6)
+    detected = np.asarray(meta["detected"], dtype=bool)
+    inside = np.asarray(meta["projected_inside"], dtype=bool)
+    points, diameters = errors[detected, :4], errors[detected, 4:]
+    found = points.size > 0
+    return dict(
+        zip(
+            names,
+            (
+                len(detected),
+                int(np.sum(inside & ~detected)),
+                float(np.sqrt(np.mean(points**2))) if found else None,
+                float(np.max(np.abs(points))) if found else None,
+                float(np.sqrt(np.mean(diameters**2))) if found else None,
+            ),
+            strict=True,
+        )
+    )
 
 
 def oscillation_rms(t: np.ndarray, error: np.ndarray) -> tuple[float, float | None]:

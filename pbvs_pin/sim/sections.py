@@ -196,13 +196,40 @@ class CameraSection(Section):
         None, "Delay from capture to delivery [s]; one frame period (1 / rate) if absent.",
         sign=NON_NEGATIVE, optional=float,
     )  # fmt: skip
-    noise_px: float = key(0.0, "Standard deviation of the pixel noise [px].", sign=NON_NEGATIVE)
+    noise_px: float = key(
+        0.0, "Standard deviation of the pixel noise [px] (points camera; a rendered camera "
+        "has image_noise).", sign=NON_NEGATIVE,
+    )  # fmt: skip
     drop_probability: float = key(0.0, "Chance a frame is lost, in [0, 1).", sign=NON_NEGATIVE)
     occlusion_starts: tuple[float, ...] = key((), "Occlusion starts [s].", sign=NON_NEGATIVE)
     occlusion_rate: float = key(0.0, "Random occlusion episodes per second.", sign=NON_NEGATIVE)
     occlusion_duration: float = key(0.0, "Length of an occlusion [s].", sign=NON_NEGATIVE)
     latency_jitter: float = key(0.0, "Largest extra (uniform) latency [s].", sign=NON_NEGATIVE)
     exposure_delay: float = key(0.0, "Exposure to timestamp delay [s].", sign=NON_NEGATIVE)
+    model: str = key(
+        "points", "points (eq. 2 on the sphere centres) or rendered (MuJoCo draws the scene, a "
+        "detector finds the spheres: pbvs_pin.sim.rendered_camera).",
+        choices=("points", "rendered"),
+    )  # fmt: skip
+    detector: str = key(
+        "colour", "Detector of a rendered camera, by its registered name "
+        "(pbvs_pin.sim.detection.register_detector).",
+    )  # fmt: skip
+    image_noise: float = key(
+        0.0, "Rendered camera: standard deviation of the per-pixel noise [grey levels of 255].",
+        sign=NON_NEGATIVE,
+    )  # fmt: skip
+    exposure_time: float = key(
+        0.0, "Rendered camera: exposure averaged over the control steps it spans, motion blur "
+        "[s] (0: none).", sign=NON_NEGATIVE,
+    )  # fmt: skip
+    light_change_time: float = key(
+        0.0, "Rendered camera: time the lighting changes [s].", sign=NON_NEGATIVE
+    )
+    light_change_scale: float = key(
+        1.0, "Rendered camera: factor on the lights' intensity from light_change_time on (1: "
+        "no change).", sign=NON_NEGATIVE,
+    )  # fmt: skip
 
     @property
     def delivery_latency(self) -> float:
@@ -222,7 +249,8 @@ class CameraSection(Section):
         """Valid, plausible intrinsics (GainError naming the key).
 
         The image is at most :data:`MAX_IMAGE_PX` px a side and the field of view at least
-        :data:`MIN_FIELD_OF_VIEW_DEG` across the larger side; drop_probability < 1.
+        :data:`MIN_FIELD_OF_VIEW_DEG` across the larger side; drop_probability < 1; a
+        registered detector.
         """
         if self.drop_probability >= 1:
             raise GainError(f"expected < 1, got {self.drop_probability:g}", "drop_probability")
@@ -240,6 +268,13 @@ class CameraSection(Section):
                 "focal_px",
             )
         self.intrinsics()
+        if self.model == "rendered":
+            from pbvs_pin.sim.detection import detector_names  # OpenCV only when rendering
+
+            if self.detector not in detector_names():
+                raise GainError(
+                    f"expected one of {detector_names()}, got {self.detector!r}", "detector"
+                )
 
 
 @dataclass(frozen=True)

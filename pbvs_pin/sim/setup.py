@@ -33,6 +33,7 @@ from pbvs_pin.sim.vision import FAULT_STREAM, CameraFaults, CameraSensor
 
 if TYPE_CHECKING:
     from pbvs_pin.mujoco_plant import MujocoPlant
+    from pbvs_pin.sim.rendered_camera import RenderedCamera
 
 SETTLE_TIME = 0.5
 """Time [s] a MuJoCo plant stands still before ``t = 0``, its wheels settling on the floor."""
@@ -156,6 +157,8 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
             robot.camera = camera
         q0 = robot.home()
     model = robot.with_model_error(scenario.model_error.kinematic_scale)
+    if scenario.camera.model == "rendered":
+        import pbvs_pin.sim.render  # noqa: F401  (sets MUJOCO_GL before a MuJoCo plant loads MuJoCo)
     plant = _plant(scenario, robot, q0)
     target_spec = scenario.target
     features = TwoSphereFeatures(target_spec.diameter)
@@ -173,9 +176,13 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
     )  # fmt: skip
     fault_rng = np.random.default_rng([scenario.simulation.seed, FAULT_STREAM])
     latency = spec.delivery_latency
+    renderer = None
+    if spec.model == "rendered":
+        renderer = _rendered_camera(scenario, robot, plant, target)
     sensor = CameraSensor(
-        camera, target.diameter, spec.rate, latency, spec.noise_px, rng, faults, fault_rng
-    )
+        camera, target.diameter, spec.rate, latency, spec.noise_px, rng, faults, fault_rng,
+        renderer,
+    )  # fmt: skip
     control = Controller(model, ControllerSettings.from_scenario(scenario), announce=False)
     laser_spec = scenario.laser
     laser = Laser(
@@ -213,6 +220,29 @@ def _plant(scenario: Scenario, robot: MobileManipulator, q0: np.ndarray) -> Plan
     if errors.payload == 0:
         return Plant(tuned, servo, q0, dt)
     return Plant(tuned.with_payload(errors.payload), servo, q0, dt, tuned=tuned)
+
+
+def _rendered_camera(
+    scenario: Scenario,
+    robot: MobileManipulator,
+    plant: Plant | MujocoPlant,
+    target: TwoSphereTarget,
+) -> RenderedCamera:
+    """The rendered camera of ``camera.model = "rendered"``, reading the true plant."""
+    from pbvs_pin.sim.detection import detector_from  # OpenCV and MuJoCo only when rendering
+    from pbvs_pin.sim.render import SceneRenderer
+    from pbvs_pin.sim.rendered_camera import RENDER_STREAM, ImageEffects, RenderedCamera
+
+    spec = scenario.camera
+    camera = robot.camera
+    effects = ImageEffects(
+        spec.image_noise, spec.exposure_time, spec.light_change_time, spec.light_change_scale
+    )
+    scene = SceneRenderer(robot, camera, target.diameter, list(scenario.obstacles))
+    rng = np.random.default_rng([scenario.simulation.seed, RENDER_STREAM])
+    return RenderedCamera(
+        robot, scene, plant, target, detector_from(spec.detector, camera), effects, rng
+    )
 
 
 def _start(scenario: Scenario, robot: MobileManipulator) -> np.ndarray:

@@ -23,12 +23,16 @@ unchanged:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pbvs_pin.camera import MIN_DEPTH, CameraIntrinsics
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.features import ImageMeasurement
+
+if TYPE_CHECKING:
+    from pbvs_pin.sim.rendered_camera import RenderedCamera
 
 FAULT_STREAM = 13
 """Second entry of the fault generator's seed ``[seed, FAULT_STREAM]`` (issue 13)."""
@@ -90,6 +94,9 @@ class CameraSensor:
         rng: Seeded random generator of the pixel noise.
         faults: The camera's faults (none by default).
         fault_rng: Seeded random generator of the faults (drops, random occlusions, jitter).
+        renderer: The rendered camera (``camera.model = "rendered"``): each frame's points,
+            diameters and visibility come from its image instead of the projection of the
+            centres, and ``noise_px`` does not apply (:mod:`pbvs_pin.sim.rendered_camera`).
     """
 
     def __init__(
@@ -102,6 +109,7 @@ class CameraSensor:
         rng: np.random.Generator,
         faults: CameraFaults | None = None,
         fault_rng: np.random.Generator | None = None,
+        renderer: RenderedCamera | None = None,
     ) -> None:
         if not rate > 0:
             raise GainError(f"camera rate: expected > 0 Hz, got {rate}")
@@ -114,6 +122,7 @@ class CameraSensor:
         self.period, self.latency, self.noise = 1.0 / rate, latency, noise_px
         self.rng, self.faults = rng, faults
         self.fault_rng = fault_rng if fault_rng is not None else np.random.default_rng(0)
+        self.renderer = renderer
         self.next_capture = 0.0
         self.occluded_until = -np.inf
         self.exposed: list[tuple[float, Frame]] = []  # (exposure time, frame before its stamp)
@@ -140,6 +149,19 @@ class CameraSensor:
         faults = self.faults
         if faults.drop_probability > 0 and self.fault_rng.random() < faults.drop_probability:
             return
+        if self.renderer is not None:
+            points, diameters, visible = self.renderer.capture(t, camera_pose, centres)
+        else:
+            points, diameters, visible = self._project(camera_pose, centres)
+        if visible and self._occluded(t):
+            points, diameters, visible = np.full((2, 2), np.nan), np.full(2, np.nan), False
+        self.exposed.append((t, Frame(t, points, diameters, q, visible)))
+        self.stamp(t, q)
+
+    def _project(
+        self, camera_pose: object, centres: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, bool]:
+        """Points [px], diameters [px] and visibility of the point camera: eq. (2) plus noise."""
         image, depths = self.camera.project_world(camera_pose, centres)
         visible = bool(np.all(depths > MIN_DEPTH))
         points = np.full((2, 2), np.nan)
@@ -150,10 +172,7 @@ class CameraSensor:
             points = points + self.noise * self.rng.standard_normal((2, 2))
             diameters = np.maximum(diameters + self.noise * self.rng.standard_normal(2), 1.0)
             visible = self.camera.in_image(points)
-        if visible and self._occluded(t):
-            points, diameters, visible = np.full((2, 2), np.nan), np.full(2, np.nan), False
-        self.exposed.append((t, Frame(t, points, diameters, q, visible)))
-        self.stamp(t, q)
+        return points, diameters, visible
 
     def _occluded(self, t: float) -> bool:
         """Whether an occlusion episode covers ``t`` (random episodes start here)."""
@@ -168,8 +187,11 @@ class CameraSensor:
     def stamp(self, t: float, q: np.ndarray) -> None:
         """Stamp the exposed frames whose exposure delay has elapsed by ``t`` with ``t``, ``q``.
 
-        The frame is then due ``latency`` (plus its jitter draw) after ``t``.
+        The frame is then due ``latency`` (plus its jitter draw) after ``t``. A rendered
+        camera remembers the instant for a blurred exposure (called at every control step).
         """
+        if self.renderer is not None:
+            self.renderer.observe(t)
         while self.exposed and self.exposed[0][0] + self.faults.exposure_delay <= t + 1e-9:
             _, frame = self.exposed.pop(0)
             delay = self.latency

@@ -10,6 +10,7 @@ and none to open it.
 
 from __future__ import annotations
 
+import base64
 import json
 from pathlib import Path
 
@@ -108,7 +109,31 @@ def true_image_points(robot: MobileManipulator, q: np.ndarray, centres: np.ndarr
     return points
 
 
-def write_run_replay(log: RunLog, path: str | Path, rate: float = REPLAY_RATE) -> Path:
+EYE_VIEW_SCRIPT = """<img id="eye-view" alt="robot's-eye view"
+ style="position:fixed;right:8px;bottom:8px;border:2px solid #444;z-index:10">
+<script>
+(function () {
+  // The robot's-eye view beside the scene: the image of the replay's current key.
+  const frames = %s, times = %s, image = document.getElementById("eye-view");
+  const render = viewer.render.bind(viewer);
+  viewer.render = function () {
+    const actions = viewer.animator.actions, t = actions.length ? actions[0].time : 0;
+    let k = 0;
+    for (let j = 1; j < times.length; j++) {
+      if (Math.abs(times[j] - t) < Math.abs(times[k] - t)) { k = j; }
+    }
+    if (image.dataset.key !== String(k)) { image.src = frames[k]; image.dataset.key = k; }
+    render();
+  };
+})();
+</script>"""
+"""Panel and script appended to a replay with the robot's-eye view: a JPEG per key, shown at
+the animation's time (the key nearest to it)."""
+
+
+def write_run_replay(
+    log: RunLog, path: str | Path, rate: float = REPLAY_RATE, eye_view: bool = False
+) -> Path:
     """Write an HTML replay of a run that plays and scrubs in a browser without a server.
 
     The robot, spheres, camera and current image points are keyed at ``rate``; three.js
@@ -123,6 +148,8 @@ def write_run_replay(log: RunLog, path: str | Path, rate: float = REPLAY_RATE) -
         path: Output HTML file.
         rate: Frames per second kept in the replay [Hz]: every ``1 / (rate * dt)``-th
             sample of a log sampled every ``dt``, and the last one.
+        eye_view: Also show the robot's-eye view beside the scene, at each kept sample
+            (:func:`pbvs_pin.viz.eye_view.eye_views`, at half size; :data:`EYE_VIEW_SCRIPT`).
 
     Returns:
         The written path.
@@ -156,8 +183,26 @@ def write_run_replay(log: RunLog, path: str | Path, rate: float = REPLAY_RATE) -
     names = json.dumps(["meshcat", *FOLLOW_PATH.split("/")])
     html = out.read_text(encoding="utf-8")
     head, _, tail = html.rpartition("</body>")
-    out.write_text(head + FOLLOW_SCRIPT % names + tail, encoding="utf-8")
+    extra = FOLLOW_SCRIPT % names
+    if eye_view:
+        frames = json.dumps(_eye_view_frames(log, keep))
+        extra += EYE_VIEW_SCRIPT % (frames, json.dumps(times.tolist()))
+    out.write_text(head + extra + tail, encoding="utf-8")
     return out
+
+
+def _eye_view_frames(log: RunLog, samples: np.ndarray) -> list[str]:
+    """The robot's-eye view at ``samples`` as half-size JPEG data URLs."""
+    import cv2
+
+    from pbvs_pin.viz.eye_view import eye_views
+
+    urls = []
+    for image in eye_views(log, samples):
+        half = cv2.resize(image, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+        _, jpeg = cv2.imencode(".jpg", cv2.cvtColor(half, cv2.COLOR_RGB2BGR))
+        urls.append("data:image/jpeg;base64," + base64.b64encode(jpeg.tobytes()).decode())
+    return urls
 
 
 def follow_point(platform: np.ndarray, target: np.ndarray) -> np.ndarray:

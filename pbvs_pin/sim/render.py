@@ -1,0 +1,254 @@
+"""The scene drawn by MuJoCo from the camera, at the camera's intrinsics and image size.
+
+:class:`SceneRenderer` builds a MuJoCo model of the *scene* (not of the physics) from the
+robot's assembled URDF (:attr:`pbvs_pin.robot.MobileManipulator.urdf_xml`, through MuJoCo's
+URDF importer with its visual geometry kept, colours from the URDF's materials), adds the two
+target spheres (mocap bodies, colours of :data:`pbvs_pin.sim.detection.SPHERE_HUES`), the
+obstacles (vertical prisms of their height), a checkered floor, an overhead light and the
+camera's headlight. :meth:`SceneRenderer.render` places the robot at a configuration of the
+controller's model (planar pose and arm joints, as :class:`pbvs_pin.mujoco_plant.MujocoPlant`
+does), the spheres at their centres and MuJoCo's camera at ``world_T_camera``, and draws with
+MuJoCo's offscreen renderer. It draws only the pose it is given: on either plant engine the
+scene's own model has no physics.
+
+The camera: MuJoCo's camera looks along its ``-z`` with ``y`` up, the optical frame (REP-103)
+along ``z`` with ``y`` down, so ``R_mujoco = R_optical diag(1, -1, -1)``; the vertical field
+of view is ``2 atan(H / (2 f))`` with square pixels and the principal point at the image
+centre, as :class:`pbvs_pin.camera.CameraIntrinsics` has.
+
+Headless rendering needs an OpenGL context without a display: ``MUJOCO_GL=egl`` (Debian's
+``libegl1`` and ``libegl-mesa0``, Mesa's software rasteriser when there is no GPU) or
+``MUJOCO_GL=osmesa`` (``libosmesa6``). MuJoCo reads the variable when it is first imported;
+this module sets it to ``egl`` when it is not set and MuJoCo is not imported yet.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import os
+import sys
+
+if "mujoco" not in sys.modules:
+    os.environ.setdefault("MUJOCO_GL", "egl")
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+from lxml import etree
+
+from pbvs_pin import frames
+from pbvs_pin.camera import CameraIntrinsics
+from pbvs_pin.exceptions import RenderingUnavailable, UrdfError
+from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.sim.detection import SPHERE_HUES
+from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle, Obstacle
+
+OPTICAL_TO_MUJOCO = np.diag([1.0, -1.0, -1.0])
+"""Rotation from MuJoCo's camera axes (x right, y up, looking along -z) to the optical frame."""
+
+OBSTACLE_RGBA = (0.55, 0.5, 0.45, 1.0)
+"""Colour of the obstacles (a grey-brown of low saturation)."""
+
+FLOOR_RGB = ((0.45, 0.45, 0.45), (0.6, 0.6, 0.6))
+"""The floor's two checker greys."""
+
+NEAR_CLIP = 0.01
+"""Distance [m] from the camera of the near clipping plane."""
+
+
+def sphere_rgba(hue: float) -> list[float]:
+    """A saturated colour [0-1] of ``hue`` [deg] for a sphere."""
+    return [*colorsys.hsv_to_rgb(hue / 360.0, 1.0, 0.9), 1.0]
+
+
+def _visual_urdf(robot: MobileManipulator) -> str:
+    """The robot's URDF with MuJoCo's ``discardvisual`` off (visual geometry kept)."""
+    if robot.urdf_xml is None:
+        raise UrdfError(robot.source, "rendered camera: expected a robot built from a URDF")
+    xml = robot.urdf_xml
+    root = etree.fromstring(xml.encode() if isinstance(xml, str) else xml)
+    extension = etree.SubElement(root, "mujoco")
+    etree.SubElement(extension, "compiler", discardvisual="false", fusestatic="false")
+    return etree.tostring(root).decode()
+
+
+def scene_spec(
+    robot: MobileManipulator,
+    camera: CameraIntrinsics,
+    diameter: float,
+    obstacles: list[Obstacle],
+) -> mujoco.MjSpec:
+    """The scene's MuJoCo description (see the module docstring).
+
+    Args:
+        robot: The true robot, built from a URDF.
+        camera: Intrinsics: the image size and the field of view.
+        diameter: Sphere diameter D [m].
+        obstacles: The obstacles on the floor.
+
+    Raises:
+        UrdfError: If the robot has no URDF or MuJoCo cannot read it.
+    """
+    try:
+        spec = mujoco.MjSpec.from_string(_visual_urdf(robot))
+    except ValueError as err:
+        raise UrdfError(robot.source, f"MuJoCo cannot read the URDF: {err}") from err
+    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    for body in spec.bodies:
+        body.mass, body.inertia, body.fullinertia = 1.0, [1.0, 1.0, 1.0], [np.nan] * 6
+        for geom in body.geoms:
+            if geom.group != 1:  # MuJoCo's URDF importer puts visual geometry in group 1
+                spec.delete(geom)
+            else:
+                geom.group = 0
+    spec.body(frames.DRIVE_FOOTPRINT).add_freejoint(name=frames.DRIVE_FOOTPRINT)
+    for index, hue in enumerate(SPHERE_HUES):
+        body = spec.worldbody.add_body(name=f"sphere{index}", mocap=True)
+        body.add_geom(
+            type=mujoco.mjtGeom.mjGEOM_SPHERE,
+            size=[diameter / 2, 0, 0],
+            rgba=sphere_rgba(hue),
+            material=_matte(spec, f"sphere{index}"),
+        )
+    for obstacle in obstacles:
+        _add_obstacle(spec, obstacle)
+    _add_floor(spec)
+    spec.worldbody.add_light(
+        pos=[0.0, 0.0, 6.0], dir=[0.2, 0.1, -1.0], type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+        castshadow=False, diffuse=[0.6, 0.6, 0.6], specular=[0.1, 0.1, 0.1],
+    )  # fmt: skip
+    spec.visual.headlight.ambient = [0.3, 0.3, 0.3]
+    spec.visual.headlight.diffuse = [0.3, 0.3, 0.3]
+    spec.worldbody.add_camera(name="eye", fovy=camera_fovy(camera))
+    spec.visual.global_.offwidth, spec.visual.global_.offheight = camera.width, camera.height
+    # no multisampling: 2.5x faster, and the sphere's binary mask then has its centroid at the
+    # silhouette's centre within 0.03 px (with MuJoCo's 4 samples, 0.3 px off vertically)
+    spec.visual.quality.offsamples = 0
+    spec.stat.extent = 1.0  # znear is a fraction of the extent
+    spec.visual.map.znear = NEAR_CLIP
+    spec.visual.map.zfar = 500.0
+    return spec
+
+
+def camera_fovy(camera: CameraIntrinsics) -> float:
+    r"""MuJoCo's vertical field of view [deg]: ``2 atan(H / (2 f))``."""
+    return float(np.degrees(2.0 * np.arctan(0.5 * camera.height / camera.focal_px)))
+
+
+def _add_obstacle(spec: mujoco.MjSpec, obstacle: Obstacle) -> None:
+    """A cylinder or a box standing on the floor."""
+    half = obstacle.height / 2
+    if isinstance(obstacle, CircleObstacle):
+        spec.worldbody.add_geom(
+            type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[obstacle.radius, half, 0],
+            pos=[obstacle.x, obstacle.y, half], rgba=OBSTACLE_RGBA,
+        )  # fmt: skip
+    elif isinstance(obstacle, BoxObstacle):
+        yaw = obstacle.yaw
+        spec.worldbody.add_geom(
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[obstacle.size_x / 2, obstacle.size_y / 2, half],
+            pos=[obstacle.x, obstacle.y, half],
+            quat=[np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)],
+            rgba=OBSTACLE_RGBA,
+        )
+    else:
+        raise RenderingUnavailable(f"no drawing for obstacle {obstacle!r}")
+
+
+def _matte(spec: mujoco.MjSpec, name: str) -> str:
+    """A material without specular highlight (a highlight is not the sphere's colour)."""
+    spec.add_material(name=name, specular=0.0, shininess=0.0)
+    return name
+
+
+def _add_floor(spec: mujoco.MjSpec) -> None:
+    """A plane with a 0.5 m checker of two greys."""
+    spec.add_texture(
+        name="floor", type=mujoco.mjtTexture.mjTEXTURE_2D,
+        builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=FLOOR_RGB[0], rgb2=FLOOR_RGB[1],
+        width=64, height=64,
+    )  # fmt: skip
+    material = spec.add_material(name="floor", texrepeat=[1.0, 1.0], texuniform=True)
+    material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "floor"
+    spec.worldbody.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0], material="floor"
+    )
+
+
+class SceneRenderer:
+    """Draws the scene from the camera with MuJoCo (see the module docstring).
+
+    Args:
+        robot: The true robot, built from a URDF.
+        camera: Intrinsics.
+        diameter: Sphere diameter D [m].
+        obstacles: The obstacles on the floor.
+
+    Raises:
+        UrdfError: If the robot has no URDF or MuJoCo cannot read it.
+        RenderingUnavailable: If MuJoCo cannot open an offscreen OpenGL context.
+    """
+
+    def __init__(
+        self,
+        robot: MobileManipulator,
+        camera: CameraIntrinsics,
+        diameter: float,
+        obstacles: list[Obstacle],
+    ) -> None:
+        self.robot, self.camera, self.diameter = robot, camera, diameter
+        self.model = scene_spec(robot, camera, diameter, obstacles).compile()
+        self.data = mujoco.MjData(self.model)
+        model = self.model
+        self._arm_qpos = np.array([model.joint(n).qposadr[0] for n in robot.arm_joint_names])
+        self._light = model.light_diffuse.copy(), model.vis.headlight.diffuse.copy()
+        self._ambient = model.vis.headlight.ambient.copy()
+        try:
+            self.renderer = mujoco.Renderer(model, camera.height, camera.width)
+        except Exception as err:  # MuJoCo raises several types when no GL context opens
+            raise RenderingUnavailable(
+                f"MuJoCo cannot render offscreen with MUJOCO_GL="
+                f"{os.environ.get('MUJOCO_GL', '')!r} ({err}); set MUJOCO_GL=egl (Debian: "
+                "apt-get install libegl1 libegl-mesa0) or osmesa (libosmesa6) before MuJoCo "
+                "is imported"
+            ) from err
+
+    def render(
+        self,
+        q: np.ndarray,
+        camera_pose: pin.SE3,
+        centres: np.ndarray,
+        light: float = 1.0,
+    ) -> np.ndarray:
+        """The image seen from ``camera_pose``.
+
+        Args:
+            q: Configuration of the robot (controller's model). Shape (nq,).
+            camera_pose: ``world_T_camera`` of the optical frame.
+            centres: Sphere centres [m], upper first. Shape (2, 3).
+            light: Factor on the lights' intensity (1: as built).
+
+        Returns:
+            RGB image, ``uint8``. Shape (H, W, 3).
+        """
+        model, data = self.model, self.data
+        yaw = np.arctan2(q[3], q[2])
+        data.qpos[:7] = [q[0], q[1], 0.0, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
+        data.qpos[self._arm_qpos] = self.robot.arm_positions(q)
+        data.mocap_pos[:] = centres
+        model.cam_pos[0] = camera_pose.translation
+        rotation = camera_pose.rotation @ OPTICAL_TO_MUJOCO
+        mujoco.mju_mat2Quat(model.cam_quat[0], rotation.reshape(-1))
+        lights, headlight = self._light
+        model.light_diffuse[:] = light * lights
+        model.vis.headlight.diffuse[:] = light * headlight
+        model.vis.headlight.ambient[:] = light * self._ambient
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_camlight(model, data)
+        self.renderer.update_scene(data, camera="eye")
+        return self.renderer.render()
+
+    def close(self) -> None:
+        """Release the OpenGL context."""
+        self.renderer.close()
