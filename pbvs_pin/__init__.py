@@ -50,6 +50,7 @@ from pbvs_pin.manipulability import (
 )
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.servo import ServoModel
+from pbvs_pin.sim.detection import ColourDetector, Detector, register_detector
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import Scenario, load_scenario
@@ -74,11 +75,13 @@ __all__ = [
     "CameraFrame",
     "CameraIntrinsics",
     "CameraSection",
+    "ColourDetector",
     "CompensationSection",
     "ControlInputError",
     "Controller",
     "ControllerSection",
     "ControllerSettings",
+    "Detector",
     "DifferentialDrive",
     "DriveAxleNotFound",
     "DynamicTerms",
@@ -117,6 +120,7 @@ __all__ = [
     "manipulability",
     "max_manipulability_posture",
     "point_interaction_matrix",
+    "register_detector",
     "rigid_body_terms",
     "simulate",
     "whole_body_manipulability",
