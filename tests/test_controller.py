@@ -368,3 +368,13 @@ def test_a_built_controller_has_compiled_its_step(robot):
     assert fused_control_step.signatures
     pose = planar_pose(robot.home())
     assert isinstance(pose, pin.SE3)
+
+
+def test_a_scenario_sizes_the_encoder_history_for_its_camera():
+    """Frames up to latency + jitter + exposure delay old can still be placed."""
+    scenario = pbvs_pin.load_scenario("experiment1").with_values(
+        **{"camera.latency": 2.5, "camera.latency_jitter": 0.2, "camera.exposure_delay": 0.1}
+    )
+    settings_of = ControllerSettings.from_scenario(scenario)
+    assert settings_of.history >= 2 * (2.5 + 0.2 + 0.1)
+    assert ControllerSettings.from_scenario(pbvs_pin.load_scenario("experiment1")).history == 2.0

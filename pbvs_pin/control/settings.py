@@ -75,11 +75,18 @@ class ControllerSettings:
 
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> ControllerSettings:
-        """The controller's part of a scenario."""
+        """The controller's part of a scenario.
+
+        The encoder history spans at least twice the oldest age a frame of the scenario's
+        camera can have on arrival (latency, jitter, exposure delay and a frame period).
+        """
+        camera = scenario.camera
+        oldest = camera.delivery_latency + camera.latency_jitter + camera.exposure_delay
         return cls(
-            camera=scenario.camera, target=scenario.target, estimator=scenario.estimator,
+            camera=camera, target=scenario.target, estimator=scenario.estimator,
             controller=scenario.controller, compensation=scenario.compensation,
             secondary=scenario.secondary, source=scenario.source,
+            history=max(HISTORY_SECONDS, 2.0 * (oldest + 1.0 / camera.rate)),
         )  # fmt: skip
 
     def error(self, field: str, problem: str) -> ScenarioError:
