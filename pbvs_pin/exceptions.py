@@ -258,3 +258,31 @@ class SweepIncomplete(PbvsError):
             f"{out}: {unfinished} of {total} runs did not finish ({reason}); the finished runs "
             "are saved: run the same command again to resume"
         )
+
+
+class UsageError(PbvsError):
+    """Command-line options that contradict each other, or one that needs another."""
+
+    def __init__(self, option: str, problem: str) -> None:
+        """Name the option and the problem.
+
+        Args:
+            option: The option at fault, e.g. ``"--speed"``.
+            problem: What is wrong and what to give instead.
+        """
+        self.option = option
+        super().__init__(f"{option}: {problem}")
+
+
+class LogError(PbvsError):
+    """A file read as a run log is missing, truncated, foreign, or lacks a channel."""
+
+    def __init__(self, source: str, problem: str) -> None:
+        """Name the file and the problem.
+
+        Args:
+            source: Path of the log.
+            problem: What is wrong and what was expected.
+        """
+        self.source = source
+        super().__init__(f"{source}: {problem}")
