@@ -16,6 +16,7 @@ import os
 import sys
 import tomllib
 from collections.abc import Callable, Sequence
+from contextlib import nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -30,7 +31,7 @@ from pbvs_pin.exceptions import (
     UsageError,
     ViewerUnavailable,
 )
-from pbvs_pin.interrupts import interrupted_in_compiled_code
+from pbvs_pin.interrupts import held_interrupts, interrupted_in_compiled_code
 from pbvs_pin.outputs import Output, check_output, replace_run_folder
 from pbvs_pin.report import ENGINE_ROBOTS
 from pbvs_pin.validation import positive_number
@@ -380,6 +381,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Passivity-based visual servoing of mobile manipulators (Pinocchio).",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.set_defaults(simulates=False)  # run, compile, reproduce: Ctrl-C held (interrupts)
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     info = commands.add_parser("info", help="describe a robot (name, URDF or TOML [robot])")
     info.add_argument("robot", help=ROBOT_HELP)
@@ -416,12 +418,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=_positive_float,
         help="with --meshcat: simulated seconds shown per second (default 1, real time)",
     )
-    run.set_defaults(handler=_run)
+    run.set_defaults(handler=_run, simulates=True)
     compiling = commands.add_parser(
         "compile",
         help="compile the control kernels now (once after installing; else the first run does)",
     )
-    compiling.set_defaults(handler=_compile)
+    compiling.set_defaults(handler=_compile, simulates=True)
     reproduce = commands.add_parser("reproduce", help="run the paper's four experiments")
     output_option(reproduce, "--out", Output.RUN_FOLDER, default="results", help="output folder")
     reproduce.add_argument("--force", action="store_true", help=FORCE_HELP)
@@ -452,7 +454,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="skip the comparison of the compensation modes (8 runs)",
     )
-    reproduce.set_defaults(handler=_reproduce)
+    reproduce.set_defaults(handler=_reproduce, simulates=True)
     view = commands.add_parser("view", help="show a robot, its camera frame and frustum")
     view.add_argument("robot", help=ROBOT_HELP)
     output_option(
@@ -491,7 +493,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     handler: Callable[[argparse.Namespace], None] = args.handler
     try:
         check_outputs(args)
-        handler(args)
+        with held_interrupts() if args.simulates else nullcontext():
+            handler(args)
     except PbvsError as err:
         print(f"pbvs-pin: error: {err}", file=sys.stderr)
         return 2

@@ -11,7 +11,6 @@ the loop saves the run so far. A second Ctrl-C raises at once.
 from __future__ import annotations
 
 import signal
-import sys
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -25,11 +24,6 @@ def _hold(signum: int, frame: object) -> None:
     if _held["pending"]:
         raise KeyboardInterrupt
     _held["pending"] = True
-    print(
-        "pbvs-pin: stopping at the next logged instant (Ctrl-C again to stop at once)",
-        file=sys.stderr,
-        flush=True,
-    )
 
 
 @contextmanager

@@ -47,17 +47,21 @@ def check_output(path: Path, kind: Output, force: bool = False) -> None:
     path = Path(path)
     if kind is Output.FILE:
         if path.is_dir():
-            raise OutputError(str(path), "is a folder; expected a file name")
+            raise OutputError(str(path), "is a folder; expected a file name; nothing was run")
         folder = path.parent
     else:
         folder = path
     if folder.exists() and not folder.is_dir():
-        raise OutputError(str(folder), "is a file; expected a folder")
+        raise OutputError(str(folder), "is a file; expected a folder; nothing was run")
     existing = next(p for p in (folder, *folder.parents) if p.exists() or p == p.parent)
     if not existing.is_dir():
-        raise OutputError(str(path), f"cannot be created: {existing} is a file, not a folder")
+        raise OutputError(
+            str(path), f"cannot be created: {existing} is a file, not a folder; nothing was run"
+        )
     if not os.access(existing, os.W_OK | os.X_OK):
-        raise OutputError(str(path), f"cannot be written: {existing} is not writable")
+        raise OutputError(
+            str(path), f"cannot be written: {existing} is not writable; nothing was run"
+        )
     if kind is Output.RUN_FOLDER:
         _check_run_folder(path, force)
 
