@@ -286,3 +286,20 @@ class LogError(PbvsError):
         """
         self.source = source
         super().__init__(f"{source}: {problem}")
+
+
+class WrongType(PbvsError):
+    """An argument is of the wrong kind: text, an object or a ragged list for numbers, say."""
+
+    def __init__(self, name: str, expected: str, value: object) -> None:
+        """Name the argument, what was expected and what was given.
+
+        Args:
+            name: Name of the argument or field.
+            expected: What it must be, e.g. ``"a number"``.
+            value: The value given (shown shortened, with its type).
+        """
+        self.name = name
+        shown = repr(value)
+        shown = shown if len(shown) <= 40 else shown[:37] + "..."
+        super().__init__(f"{name}: expected {expected}, got {shown} ({type(value).__name__})")

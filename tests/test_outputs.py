@@ -146,7 +146,7 @@ def _log(tmp_path) -> bytes:
 def test_a_truncated_log_is_a_log_error(tmp_path, cut):
     whole = _log(tmp_path)
     (tmp_path / "log.npz").write_bytes(whole[:cut])
-    with pytest.raises(LogError, match="log.npz"):
+    with pytest.raises(LogError, match=r"log\.npz"):
         RunLog.load(tmp_path)
 
 

@@ -45,6 +45,7 @@ from pbvs_pin.manipulability import arm_jacobian, manipulability
 from pbvs_pin.sim.obstacles import clearance
 from pbvs_pin.sim.scenario import obstacle_table
 from pbvs_pin.sim.sensing import planar_pose
+from pbvs_pin.validation import as_path
 
 if TYPE_CHECKING:
     from pbvs_pin.control.kinematic import ControlOutput
@@ -102,7 +103,7 @@ class RunLog:
         Raises:
             OutputError: If the folder or the file cannot be written.
         """
-        folder = Path(folder)
+        folder = as_path("folder", folder)
         path = folder / "log.npz"
         with atomic_file(path) as handle:
             np.savez_compressed(handle, meta=json.dumps(self.meta), **self.channels)
@@ -117,7 +118,7 @@ class RunLog:
                 objects (pickles are never read), has no JSON ``meta`` or no time channel
                 ``t``, or channels of another length than ``t``.
         """
-        path = Path(path)
+        path = as_path("path", path)
         if path.is_dir():
             path = path / "log.npz"
         try:
