@@ -96,7 +96,7 @@ class CameraIntrinsics:
             Image points ``[u, v]`` [px], shape (k, 2), and depths [m], shape (k,).
         """
         camera_pose = as_pose_object("camera_pose", camera_pose)
-        points = as_rows("points_world", points_world, 3)
+        points = as_rows("points_world", points_world, 3, finite=False)
         min_depth = as_number("min_depth", min_depth)
         return project_points(
             points, camera_pose.translation, camera_pose.rotation, self.focal_px, min_depth

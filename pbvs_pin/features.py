@@ -23,7 +23,7 @@ from numba import njit
 from pbvs_pin.camera import MIN_DEPTH, CameraIntrinsics, point_jacobians
 from pbvs_pin.exceptions import GainError, PointBehindCamera, ShapeError
 from pbvs_pin.linalg import matmul
-from pbvs_pin.validation import as_array, as_matrix, as_numbers, convert_fields
+from pbvs_pin.validation import as_array, as_matrix, as_numbers, as_rows, convert_fields
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -48,10 +48,8 @@ class ImageMeasurement:
             WrongType: If either is not numbers.
             ShapeError: If the shapes differ from ``(k, 2)`` and ``(k,)``.
         """
-        points = as_numbers("points", self.points)
-        rows = len(points) if points.ndim == 2 else 1
-        if points.shape != (rows, 2):
-            raise ShapeError("points", (rows, 2), points.shape)
+        points = as_rows("points", self.points, 2, finite=False)
+        rows = len(points)
         depths = as_numbers("depths", self.depths)
         if depths.shape != (rows,):
             raise ShapeError("depths", (rows,), depths.shape)

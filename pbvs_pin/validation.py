@@ -64,16 +64,27 @@ def as_numbers(name: str, value: npt.ArrayLike) -> np.ndarray:
     return raw.astype(float, copy=False)
 
 
-def as_rows(name: str, value: npt.ArrayLike, width: int) -> np.ndarray:
-    """Convert ``value`` to a finite float array of shape ``(k, width)``, any ``k``.
+def as_rows(name: str, value: npt.ArrayLike, width: int, finite: bool = True) -> np.ndarray:
+    """Convert ``value`` to a float array of shape ``(k, width)``, any ``k``.
+
+    Args:
+        name: Name of the argument, used in error messages.
+        value: The rows.
+        width: Entries per row.
+        finite: Refuse NaN and infinity (False: the caller decides what they mean).
 
     Raises:
         WrongType: If ``value`` is not numbers.
         ShapeError: If it is not ``k`` rows of ``width``.
-        NonFiniteValue: If an entry is NaN or infinite.
+        NonFiniteValue: If an entry is NaN or infinite and ``finite``.
     """
     array = as_numbers(name, value)
-    return as_array(name, array, (len(array) if array.ndim == 2 else 1, width))
+    shape = (len(array) if array.ndim == 2 else 1, width)
+    if array.shape != shape:
+        raise ShapeError(name, shape, array.shape)
+    if finite and not np.isfinite(array).all():
+        raise NonFiniteValue(name)
+    return array
 
 
 def as_matrix(name: str, value: npt.ArrayLike, rows: int) -> np.ndarray:
@@ -215,11 +226,11 @@ def convert_fields(
 
     Raises:
         WrongType: If a field is not a number (or not a whole one, for ``counts``).
-        NonFiniteValue: If a field is NaN or infinite.
+        NonFiniteValue: If a count is NaN or infinite.
     """
     owner = type(instance).__name__
-    for name in numbers:
-        value = as_number(f"{owner}.{name}", getattr(instance, name))
+    for name in numbers:  # NaN and infinity are left to the class's own range checks
+        value = as_number(f"{owner}.{name}", getattr(instance, name), finite=False)
         object.__setattr__(instance, name, value)
     for name in counts:
         value = as_count(f"{owner}.{name}", getattr(instance, name), minimum=-(2**62))
