@@ -29,6 +29,7 @@ import os
 import tempfile
 import time
 import zipfile
+import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
@@ -127,7 +128,7 @@ class RunLog:
                 channels = {name: data[name] for name in data.files if name != "meta"}
         except FileNotFoundError as err:
             raise LogError(str(path), "no such file (expected a run's log.npz)") from err
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as err:
             raise LogError(str(path), f"not a readable run log ({type(err).__name__})") from err
         if not isinstance(meta, dict) or "t" not in channels or channels["t"].ndim != 1:
             raise LogError(str(path), "not a run log: no meta table or no time channel t")
