@@ -246,8 +246,6 @@ def _reproduce(args: argparse.Namespace) -> None:
         if robot not in ROBOT_NAMES:
             raise RobotNotFound(robot, ROBOT_NAMES)
     for robot in args.robots:  # a name, a URDF or a robot file: checked before any run
-        if robot not in ROBOT_NAMES and not Path(robot).is_file():
-            raise RobotNotFound(robot, ROBOT_NAMES)
         with_robot(load_scenario("experiment1"), robot)
     if args.force:
         replace_run_folder(Path(args.out))

@@ -11,8 +11,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from pbvs_pin.catalogue import OTHER_ROBOTS, REFERENCE_ROBOT
-from pbvs_pin.exceptions import OutputError, RunInterrupted, ScenarioError
+from pbvs_pin.catalogue import OTHER_ROBOTS, REFERENCE_ROBOT, ROBOT_NAMES
+from pbvs_pin.exceptions import OutputError, RobotNotFound, RunInterrupted, ScenarioError
 from pbvs_pin.interrupts import interrupts_held, with_interrupt_point
 from pbvs_pin.report import (
     CLAIMS,
@@ -112,6 +112,7 @@ def with_robot(scenario: Scenario, robot: str) -> Scenario:
     its folder); a URDF file needs a ``camera_optical_frame``.
 
     Raises:
+        RobotNotFound: If ``robot`` is neither a file nor a shipped name.
         ScenarioError: If the robot file has no ``[robot]`` table or the table is invalid.
     """
     if Path(robot).suffix.lower() == ".toml":
@@ -121,8 +122,10 @@ def with_robot(scenario: Scenario, robot: str) -> Scenario:
         table = source.to_toml()["robot"]
     elif Path(robot).suffix.lower() == ".urdf" or Path(robot).is_file():
         table = {"urdf": str(Path(robot).resolve()), "camera_frame": "camera_optical_frame"}
-    else:
+    elif robot in ROBOT_NAMES:
         table = {"name": robot}
+    else:
+        raise RobotNotFound(robot, ROBOT_NAMES)
     raw = scenario.to_toml()
     raw["robot"] = table
     return parse_scenario(raw, scenario.source)

@@ -22,6 +22,7 @@ _held = {"active": False, "pending": False}
 def _hold(signum: int, frame: object) -> None:
     """SIGINT handler: hold the first Ctrl-C, raise on the second."""
     if _held["pending"]:
+        _held["pending"] = False
         raise KeyboardInterrupt
     _held["pending"] = True
 
