@@ -2,7 +2,7 @@
 
     python docs/build.py [OUT]     # default OUT: docs/_build/html
 
-The hand-written pages (``conf.py``, ``index.rst``) are copied into a temporary source folder
+The hand-written pages (``conf.py``, ``index.rst``, ``bad_input.rst``) are copied into a temporary source folder
 beside three generated ones:
 
 - ``api.rst``: one ``automodule`` per module of the package (autodoc + napoleon, Google style);
@@ -33,7 +33,7 @@ from pbvs_pin.sim.sections import SECTIONS
 from pbvs_pin.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS, SWEEP_TABLE_DOCS
 
 DOCS = Path(__file__).resolve().parent
-HAND_WRITTEN = ("conf.py", "index.rst")
+HAND_WRITTEN = ("conf.py", "index.rst", "bad_input.rst")
 
 
 def heading(title: str, underline: str) -> str:
