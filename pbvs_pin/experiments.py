@@ -8,12 +8,18 @@ from __future__ import annotations
 
 import tomllib
 from collections.abc import Callable
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Any
 
 from pbvs_pin.catalogue import OTHER_ROBOTS, REFERENCE_ROBOT, ROBOT_NAMES
 from pbvs_pin.exceptions import OutputError, RobotNotFound, RunInterrupted, ScenarioError
-from pbvs_pin.interrupts import interrupts_held, with_interrupt_point
+from pbvs_pin.interrupts import (
+    interrupt_point,
+    interrupts_held,
+    simulating,
+    with_interrupt_point,
+)
 from pbvs_pin.report import (
     CLAIMS,
     COMPENSATION_MODES,
@@ -77,10 +83,11 @@ def run_scenario(
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     check_writable(out, *([html] if html is not None else []))
-    if interrupts_held():  # Ctrl-C taken at a logged instant, never inside compiled code
-        observer = with_interrupt_point(observer)
+    held = interrupts_held()  # Ctrl-C taken at a logged instant, never inside compiled code
     try:
-        log = simulate(scenario, progress=progress, observer=observer)
+        with simulating() if held else nullcontext():
+            observer = with_interrupt_point(observer) if held else observer
+            log = simulate(scenario, progress=progress, observer=observer)
     except RunInterrupted as stop:
         if stop.log is not None:
             stop.saved = str(stop.log.save(out))
@@ -88,6 +95,7 @@ def run_scenario(
     log.save(out)
     summary = summarize(log)
     write_json_atomically(out / "summary.json", summary)
+    interrupt_point()  # a Ctrl-C held after the last logged instant: the run is saved
     try:
         if figures:
             if status is not None:

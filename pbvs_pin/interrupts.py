@@ -2,10 +2,11 @@
 
 A ``KeyboardInterrupt`` raised while a compiled (Numba) kernel runs escapes as
 ``SystemError: CPUDispatcher(...) returned a result with an exception set``, which the loop
-cannot catch and whose run is lost. Inside :func:`held_interrupts`, the first Ctrl-C only sets
-a flag; :func:`interrupt_point`, called by the simulation at every logged instant (through
-:func:`with_interrupt_point`), raises the ``KeyboardInterrupt`` there, in Python code, where
-the loop saves the run so far. A second Ctrl-C raises at once.
+cannot catch and whose run is lost. Inside :func:`held_interrupts` and while a simulation runs
+(:func:`simulating`), the first Ctrl-C only sets a flag; :func:`interrupt_point`, called by
+the simulation at every logged instant (through :func:`with_interrupt_point`), raises the
+``KeyboardInterrupt`` there, in Python code, where the loop saves the run so far. A second
+Ctrl-C, or one outside a simulation, raises at once.
 """
 
 from __future__ import annotations
@@ -16,12 +17,12 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
-_held = {"active": False, "pending": False}
+_held = {"active": False, "pending": False, "simulating": False}
 
 
 def _hold(signum: int, frame: object) -> None:
-    """SIGINT handler: hold the first Ctrl-C, raise on the second."""
-    if _held["pending"]:
+    """SIGINT handler: hold the first Ctrl-C of a simulation, raise on the second."""
+    if _held["pending"] or not _held["simulating"]:
         _held["pending"] = False
         raise KeyboardInterrupt
     _held["pending"] = True
@@ -47,6 +48,20 @@ def held_interrupts() -> Iterator[None]:
         _held.update(active=False, pending=False)
     if pending:
         raise KeyboardInterrupt
+
+
+@contextmanager
+def simulating() -> Iterator[None]:
+    """Mark a simulation: Ctrl-C is held (inside :func:`held_interrupts`) while it runs.
+
+    A Ctrl-C held after the last logged instant stays pending: the caller raises it with
+    :func:`interrupt_point` once the finished run is saved.
+    """
+    _held["simulating"] = True
+    try:
+        yield
+    finally:
+        _held["simulating"] = False
 
 
 def interrupts_held() -> bool:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import signal
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -24,6 +25,7 @@ from pbvs_pin.interrupts import (
     held_interrupts,
     interrupt_point,
     interrupted_in_compiled_code,
+    simulating,
 )
 from pbvs_pin.sim.log import RunLog
 
@@ -158,7 +160,7 @@ def test_list_offers_no_hand_and_no_pendulum(capsys):
 
 # ---------------------------------------------------------------- Ctrl-C
 def test_a_held_ctrl_c_is_raised_at_the_next_interrupt_point():
-    with held_interrupts():
+    with held_interrupts(), simulating():
         signal.raise_signal(signal.SIGINT)  # held: no KeyboardInterrupt here
         with pytest.raises(KeyboardInterrupt):
             interrupt_point()
@@ -168,6 +170,11 @@ def test_a_held_ctrl_c_is_raised_at_the_next_interrupt_point():
             signal.raise_signal(signal.SIGINT)  # a second Ctrl-C stops at once
 
 
+def test_outside_a_simulation_ctrl_c_is_not_held():
+    with held_interrupts(), pytest.raises(KeyboardInterrupt):
+        signal.raise_signal(signal.SIGINT)
+
+
 def test_a_ctrl_c_inside_a_kernel_is_recognised():
     error = SystemError("CPUDispatcher(<function f>) returned a result with an exception set")
     error.__context__ = KeyboardInterrupt()
@@ -175,23 +182,26 @@ def test_a_ctrl_c_inside_a_kernel_is_recognised():
     assert not interrupted_in_compiled_code(SystemError("something else"))
 
 
-DELAYS_S = (0.05, 0.4, 0.8, 1.2, 1.6, 2.2, 3.0, 4.5)
-"""When Ctrl-C is sent after ``run`` starts: loading, compiled steps, figures, after the end."""
+DURATION_S = 3.0
+"""Simulated time of the interrupted runs."""
 
 
-def _run_with_ctrl_c(tmp_path, capsys, delay: float) -> str:
-    """Run a 1.5 s scenario, Ctrl-C after ``delay``; check nothing is lost; say what happened."""
+def _run_with_ctrl_c(tmp_path, capsys, delay: float | None) -> str:
+    """Run a short scenario, Ctrl-C after ``delay`` [s]; check nothing is lost; say what
+    happened."""
     scenario = tmp_path / "short.toml"
-    scenario.write_text('name = "short"\nduration = 1.5\n[robot]\nname = "pioneer_cyton"\n')
+    scenario.write_text(f'name = "short"\nduration = {DURATION_S}\n[robot]\nname = "pioneer_cyton"\n')
     out = tmp_path / f"out{delay}"
     previous = signal.signal(signal.SIGINT, lambda *args: None)  # a late Ctrl-C: ignored
-    timer = threading.Timer(delay, os.kill, (os.getpid(), signal.SIGINT))  # as a user's Ctrl-C
+    timer = threading.Timer(delay or 0.0, os.kill, (os.getpid(), signal.SIGINT))  # a user's
     try:
-        timer.start()
+        if delay is not None:
+            timer.start()
         status = main(["run", str(scenario), "--out", str(out)])
     finally:
         timer.cancel()
-        timer.join()
+        if delay is not None:
+            timer.join()
         signal.signal(signal.SIGINT, previous)
     err = capsys.readouterr().err
     assert "Traceback" not in err and "SystemError" not in err
@@ -201,17 +211,44 @@ def _run_with_ctrl_c(tmp_path, capsys, delay: float) -> str:
         return "finished"
     line = [x for x in err.splitlines() if x.startswith("pbvs-pin:")][-1]
     if not (out / "log.npz").exists():
-        assert "nothing was saved" in line or line == "pbvs-pin: interrupted"
-        return "stopped before the first logged step"
+        assert line == "pbvs-pin: interrupted" or "nothing was saved" in line
+        return "stopped before the simulation"
     log = RunLog.load(out)
     assert all(len(channel) == len(log["t"]) for channel in log.channels.values())
     assert np.isfinite(log["q"]).all()
     if not log.interrupted:
+        assert line == "pbvs-pin: interrupted" and (out / "summary.json").is_file()
         return "stopped after the run was saved"
-    assert f"t = {log['t'][-1]:.2f} s of 1.5 s" in line
+    assert f"t = {log['t'][-1]:.2f} s of {DURATION_S:g} s" in line
+    assert not (out / "summary.json").exists()
     return "partial run saved"
 
 
-def test_ctrl_c_at_any_instant_loses_nothing(tmp_path, capsys):
-    outcomes = {delay: _run_with_ctrl_c(tmp_path, capsys, delay) for delay in DELAYS_S}
-    assert "partial run saved" in outcomes.values(), outcomes
+def test_ctrl_c_at_any_instant_loses_nothing(tmp_path, capsys, monkeypatch):
+    """Ctrl-C before, at five instants during and twice after the simulation of a real run.
+
+    The instants come from an uninterrupted run (after a warm-up run loads the kernels).
+    """
+    import pbvs_pin.experiments as experiments
+
+    window: dict[str, float] = {}
+    simulate = experiments.simulate
+
+    def timed(*args, **kwargs):
+        window["start"] = time.monotonic()
+        try:
+            return simulate(*args, **kwargs)
+        finally:
+            window["end"] = time.monotonic()
+
+    monkeypatch.setattr(experiments, "simulate", timed)
+    (tmp_path / "warm").mkdir()
+    assert _run_with_ctrl_c(tmp_path / "warm", capsys, None) == "finished"  # loads the kernels
+    started = time.monotonic()
+    assert _run_with_ctrl_c(tmp_path, capsys, None) == "finished"
+    total = time.monotonic() - started
+    begin, end = window["start"] - started, window["end"] - started
+    during = [begin + f * (end - begin) for f in (0.1, 0.3, 0.5, 0.7, 0.9)]
+    delays = [0.5 * begin, *during, end + 0.3 * (total - end), end + 0.8 * (total - end)]
+    outcomes = {round(d, 2): _run_with_ctrl_c(tmp_path, capsys, d) for d in delays}
+    assert list(outcomes.values()).count("partial run saved") >= 3, outcomes
