@@ -1,6 +1,7 @@
 """Generated bad input (issue 24 item 3): every door, fuzzed with hypothesis, seeded.
 
-Doors: scenario files (a shipped scenario mutated key by key: types, signs, lengths, NaN and
+Doors: the command line (``run`` on mutated scenarios with ``--set`` and ``--duration``, the run
+itself replaced by a trap), scenario files (a shipped scenario mutated key by key: types, signs, lengths, NaN and
 infinity, huge and tiny values, unknown keys and tables, several keys at once), URDF files
 (the reference robot's, with tags removed, trees broken, masses and inertias zero, negative
 or NaN, limits reversed, unknown joint types), run logs (truncated, bit-flipped, foreign
@@ -13,7 +14,7 @@ non-finite number in its log); never a raw Python error or a hang (each case run
 :data:`CASE_SECONDS`, enforced by a timer signal).
 
 Every test is derandomised (the same cases on every run). ``PBVS_FUZZ_EXAMPLES`` multiplies
-the number of cases (1 in CI, about 2 000 cases; e.g. 20 for a nightly run);
+the number of cases (1 in CI, 2 212 cases; e.g. 20 for a nightly run);
 ``PBVS_FUZZ_SEED`` replaces the fixed derandomisation by that seed, so that nightly runs
 explore new cases. ``PBVS_FUZZ_SURVEY=1`` records the class of every outcome instead of
 failing on the first raw error, and prints the count per class at the end (how the numbers of
@@ -240,7 +241,7 @@ def mutated_scenarios(draw) -> dict:
     return raw
 
 
-@_settings(900)
+@_settings(800)
 @given(raw=mutated_scenarios())
 def test_a_mutated_scenario_is_refused_in_one_line_or_accepted(tmp_path_factory, raw):
     path = tmp_path_factory.mktemp("scenario") / "mutated.toml"
@@ -491,3 +492,46 @@ def test_a_bad_robot_file_is_refused_in_one_line(tmp_path_factory, data):
     path = tmp_path_factory.mktemp("robot") / "my_robot.toml"
     path.write_bytes(data)
     _outcome("robot file", lambda: with_robot(EXPERIMENT, str(path)))
+
+
+# ---------------------------------------------------------------- the command line
+class _Trapped(Exception):
+    """Raised instead of simulating: the command line accepted its input."""
+
+
+SET_KEYS = [f"{table}.{key}" if table else key for table in TABLES for key in SCHEMA[table]]
+SET_TEXT = st.one_of(
+    st.tuples(st.sampled_from(SET_KEYS), st.sampled_from(["=", "", "=="]),
+              st.one_of(WRONG.map(lambda v: _toml_value(v)), st.text(max_size=8)))
+    .map("".join),
+    st.text(max_size=12),
+)  # fmt: skip
+"""``--set`` arguments: known keys with values of every kind, and arbitrary text."""
+
+
+@_settings(150)
+@given(raw=mutated_scenarios(), settings_=st.lists(SET_TEXT, max_size=2),
+       duration=st.sampled_from([None, "0", "-1", "nan", "1e-9", "2.5", "1e300", "x"]))
+def test_the_command_line_refuses_in_one_line_or_starts_the_run(tmp_path_factory, monkeypatch,
+                                                                raw, settings_, duration):
+    """``run`` on a mutated scenario with ``--set`` and ``--duration``; the run is trapped."""
+    folder = tmp_path_factory.mktemp("cli")
+    try:
+        (folder / "s.toml").write_text(toml_text(raw))
+    except AssertionError:
+        return
+    argv = ["run", str(folder / "s.toml"), "--out", str(folder / "out")]
+    argv += [x for text in settings_ for x in ("--set", text)]
+    argv += ["--duration", duration] if duration is not None else []
+
+    def trap(*args, **kwargs):
+        raise _Trapped
+
+    monkeypatch.setattr("pbvs_pin.experiments.run_scenario", trap)
+    stderr = io.StringIO()
+    with contextlib.redirect_stderr(stderr), contextlib.redirect_stdout(io.StringIO()):
+        status = _outcome("command line", lambda: main(argv), allowed=(_Trapped, SystemExit))
+    if status is not None:
+        OUTCOMES[f"command line: exit {status}"] += 1
+        assert status == 2
+        assert stderr.getvalue().count("\n") == 1 and "Traceback" not in stderr.getvalue()
