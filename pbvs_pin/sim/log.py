@@ -43,6 +43,7 @@ from pbvs_pin.camera import MIN_DEPTH
 from pbvs_pin.exceptions import LogError, OutputError
 from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.manipulability import arm_jacobian, manipulability
+from pbvs_pin.outputs import Output, check_output
 from pbvs_pin.sim.obstacles import clearance
 from pbvs_pin.sim.scenario import obstacle_table
 from pbvs_pin.sim.sensing import planar_pose
@@ -182,8 +183,9 @@ def atomic_file(path: Path) -> Iterator[BinaryIO]:
 def check_writable(folder: Path, *files: Path) -> None:
     """Make sure a run's outputs can be written, before the run: fail fast, not after it.
 
-    Creates ``folder`` and each file's folder (as the run would) and writes and removes a
-    temporary file in each; a file that exists must not be a folder.
+    The paths are first checked by the command line's guard
+    (:func:`pbvs_pin.outputs.check_output`); then ``folder`` and each file's folder are
+    created (as the run would) and a temporary file is written and removed in each.
 
     Args:
         folder: Output folder of the run.
@@ -192,9 +194,9 @@ def check_writable(folder: Path, *files: Path) -> None:
     Raises:
         OutputError: If a folder cannot be created or written, or a file is a folder.
     """
+    check_output(folder, Output.FOLDER)
     for path in files:
-        if path.is_dir():
-            raise OutputError(str(path), "is a folder; expected a file name")
+        check_output(path, Output.FILE)
     for place in dict.fromkeys([folder, *(path.parent for path in files)]):
         try:
             place.mkdir(parents=True, exist_ok=True)
