@@ -20,6 +20,7 @@ import pinocchio as pin
 from numba import njit
 
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.validation import as_array, as_number, convert_fields
 
 
 class BaseAdapter(abc.ABC):
@@ -79,6 +80,7 @@ class DifferentialDrive(BaseAdapter):
 
     def __post_init__(self) -> None:
         """Reject non-positive dimensions and an expansion factor below 1."""
+        convert_fields(self, ("wheel_radius", "track", "max_wheel_speed", "track_factor"))
         if not (np.isfinite(self.track_factor) and self.track_factor >= 1.0):
             raise GainError(
                 f"DifferentialDrive.track_factor: expected >= 1, got {self.track_factor}"
@@ -121,6 +123,7 @@ class DifferentialDrive(BaseAdapter):
 
     def wheel_speeds(self, u: float, omega: float) -> tuple[float, float]:
         """Left and right wheel angular speeds [rad/s] for a command (:meth:`wheel_map`)."""
+        u, omega = as_number("u", u), as_number("omega", omega)
         left, right = self.wheel_map() @ np.array([u, 0.0, omega])
         return float(left), float(right)
 
@@ -148,7 +151,7 @@ class DifferentialDrive(BaseAdapter):
         Returns:
             Shape (2,).
         """
-        left, right = wheel_speeds
+        left, right = as_array("wheel_speeds", wheel_speeds, (2,))
         return np.array(unicycle_twist(self.wheel_radius, self.effective_track, left, right))
 
 
@@ -206,6 +209,15 @@ class Omnidirectional(BaseAdapter):
 
     max_speed: float = 1.0
     max_yaw_rate: float = 1.0
+
+    def __post_init__(self) -> None:
+        """Convert both limits to numbers; reject a limit that is not above zero."""
+        convert_fields(self, ("max_speed", "max_yaw_rate"))
+        for name in ("max_speed", "max_yaw_rate"):
+            if getattr(self, name) <= 0.0:
+                raise GainError(
+                    f"Omnidirectional.{name}: expected > 0, got {getattr(self, name)}", name
+                )
 
     def root_joint(self) -> pin.JointModel:
         """A planar joint, velocity ``[vx, vy, wz]`` in the platform frame."""

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from pbvs_pin.sim.log import RunLog
+from pbvs_pin.sim.metrics import AT_LIMIT
 from pbvs_pin.sim.scenario import Scenario, load_scenario
 
 GAIN_RULE_SCENARIO = "experiment1"
@@ -84,7 +85,12 @@ def comparison_figures(log: RunLog) -> dict[str, Any]:
         ``time_to_settle_s``: first time after which the largest absolute feature error
         stays below :data:`SETTLED_PX` until the end (None if it never does);
         ``rms_after_transient_px``: RMS over samples and features of the error after
-        :data:`TRANSIENT_S`; ``min_clearance_m`` (None without obstacles).
+        :data:`TRANSIENT_S`; ``min_clearance_m`` (None without obstacles);
+        ``saturated_samples``, the samples in which the law scaled ``u`` down to the limits,
+        and ``v_ref_at_limit_samples``, those in which a component of the commanded velocity
+        ``v_ref`` sits at its limit (:data:`pbvs_pin.sim.metrics.AT_LIMIT`): a law that never
+        scales ``u`` (the classic IBVS law reaches its limits through the compensation) shows
+        its saturation in the second count.
     """
     t = log["t"]
     largest = np.max(np.abs(log["xi_true"] - log["xi_d"]), axis=1)
@@ -98,10 +104,15 @@ def comparison_figures(log: RunLog) -> dict[str, Any]:
     error = (log["xi_true"] - log["xi_d"])[t >= TRANSIENT_S]
     clearance = log["clearance"]
     finite = clearance[np.isfinite(clearance)]
+    limits = np.asarray(log.meta["velocity_limits"], dtype=float)
     return {
         "time_to_settle_s": settle,
         "rms_after_transient_px": float(np.sqrt(np.nanmean(error**2))),
         "min_clearance_m": float(finite.min()) if finite.size else None,
+        "saturated_samples": int(np.count_nonzero(log["saturated"])),
+        "v_ref_at_limit_samples": int(
+            np.count_nonzero(np.any(np.abs(log["v_ref"]) >= AT_LIMIT * limits, axis=1))
+        ),
     }
 
 
@@ -120,8 +131,9 @@ def baseline_section(pairs: list[tuple[str, dict, dict]], gain: float) -> str:
         "objectives, saturation and dynamics as the passivity law. Gain rule: " + GAIN_RULE + ".",
         "",
         f"| experiment | law | time to max abs error < {SETTLED_PX:g} px for good [s] | "
-        f"RMS error after {TRANSIENT_S:g} s [px] | min clearance [m] | better RMS |",
-        "|---|---|---|---|---|---|",
+        f"RMS error after {TRANSIENT_S:g} s [px] | min clearance [m] | u scaled to limits "
+        "[samples] | v_ref at a limit [samples] | better RMS |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for name, passivity, ibvs in pairs:
         better = "passivity" if passivity["rms_after_transient_px"] < ibvs[
@@ -131,6 +143,8 @@ def baseline_section(pairs: list[tuple[str, dict, dict]], gain: float) -> str:
             lines.append(
                 f"| {name} | {law} | {'never' if settle is None else f'{settle:.2f}'} | "
                 f"{figures['rms_after_transient_px']:.2f} | "
-                f"{'-' if clearance is None else f'{clearance:.3f}'} | {better} |"
+                f"{'-' if clearance is None else f'{clearance:.3f}'} | "
+                f"{figures['saturated_samples']} | {figures['v_ref_at_limit_samples']} | "
+                f"{better} |"
             )
     return "\n".join(lines) + "\n"

@@ -15,8 +15,15 @@ import numpy.typing as npt
 import pinocchio as pin
 from numba import njit
 
-from pbvs_pin.exceptions import GainError, PointBehindCamera
-from pbvs_pin.validation import as_array
+from pbvs_pin.exceptions import GainError, PointBehindCamera, ShapeError
+from pbvs_pin.validation import (
+    as_array,
+    as_number,
+    as_numbers,
+    as_pose_object,
+    as_rows,
+    convert_fields,
+)
 
 MIN_DEPTH = 1e-3
 """Smallest depth [m] at which a point counts as in front of the camera."""
@@ -41,6 +48,7 @@ class CameraIntrinsics:
 
     def __post_init__(self) -> None:
         """Reject non-positive values."""
+        convert_fields(self, numbers=("focal_px",), counts=("width", "height"))
         for name in ("focal_px", "width", "height"):
             value = getattr(self, name)
             if not np.isfinite(value) or value <= 0:
@@ -87,10 +95,12 @@ class CameraIntrinsics:
         Returns:
             Image points ``[u, v]`` [px], shape (k, 2), and depths [m], shape (k,).
         """
+        camera_pose = as_pose_object("camera_pose", camera_pose)
+        points = as_rows("points_world", points_world, 3, finite=False)
+        min_depth = as_number("min_depth", min_depth)
         return project_points(
-            np.asarray(points_world, dtype=float), camera_pose.translation,
-            camera_pose.rotation, self.focal_px, min_depth,
-        )  # fmt: skip
+            points, camera_pose.translation, camera_pose.rotation, self.focal_px, min_depth
+        )
 
     def project_jacobian(self, point_in_camera: npt.ArrayLike) -> np.ndarray:
         r"""Derivative of :meth:`project` with respect to the point.
@@ -121,8 +131,8 @@ class CameraIntrinsics:
         Returns:
             ``[x, y, z]`` in the optical frame [m]. Shape (k, 3).
         """
-        xi = np.asarray(xi, dtype=float)
-        depths = np.asarray(depths, dtype=float)
+        xi = as_rows("xi", xi, 2)
+        depths = as_array("depths", depths, (len(xi),))
         return np.column_stack([-xi * depths[:, None] / self.focal_px, depths])
 
     def to_pixel(self, xi: npt.ArrayLike) -> np.ndarray:
@@ -132,7 +142,9 @@ class CameraIntrinsics:
         index ``(i, j)`` is centred at ``(i + 0.5, j + 0.5)``. ``u = W/2 - col``,
         ``v = H/2 - row``.
         """
-        xi = np.asarray(xi, dtype=float)
+        xi = as_numbers("xi", xi)
+        if xi.ndim == 0 or xi.shape[-1] != 2:
+            raise ShapeError("xi", (*xi.shape[:-1], 2), xi.shape)
         cx, cy = self.principal_point
         return np.stack([cx - xi[..., 0], cy - xi[..., 1]], axis=-1)
 
@@ -155,6 +167,7 @@ class CameraIntrinsics:
             xi: Image points [px].
             margin: Distance [px] the points must keep from the border.
         """
+        margin = as_number("margin", margin)
         pixel = self.to_pixel(xi)
         cols, rows = pixel[..., 0], pixel[..., 1]
         return bool(
@@ -179,12 +192,15 @@ class CameraIntrinsics:
         Raises:
             PointBehindCamera: If the apparent diameter is not positive.
         """
+        diameter_px = as_number("diameter_px", diameter_px, finite=False)
+        diameter_m = as_number("diameter_m", diameter_m)
         if not np.isfinite(diameter_px) or diameter_px <= 0.0:
             raise PointBehindCamera(float("inf") if diameter_px == 0 else -1.0)
         return self.focal_px * diameter_m / diameter_px
 
     def apparent_diameter(self, depth: float, diameter_m: float) -> float:
         """Apparent diameter [px] of a sphere of diameter ``diameter_m`` at ``depth`` [m]."""
+        depth, diameter_m = as_number("depth", depth), as_number("diameter_m", diameter_m)
         return self.focal_px * diameter_m / depth
 
 
@@ -258,8 +274,9 @@ def point_interaction_matrix(focal_px: float, xi: npt.ArrayLike, depth: float) -
     Returns:
         Shape (2, 6) [px/m, px/rad].
     """
-    points = np.asarray(xi, dtype=float).reshape(1, 2)
-    return point_jacobians(points, np.array([float(depth)]), float(focal_px))[0]
+    points = as_array("xi", xi, (2,)).reshape(1, 2)
+    depth, focal_px = as_number("depth", depth), as_number("focal_px", focal_px)
+    return point_jacobians(points, np.array([depth]), focal_px)[0]
 
 
 @njit(cache=True, error_model="numpy")

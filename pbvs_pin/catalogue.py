@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 
@@ -99,17 +100,72 @@ OTHER_ROBOTS = tuple(name for name in ROBOT_NAMES if name != REFERENCE_ROBOT)
 """Robots the paper's experiments are repeated on by default: every other shipped robot."""
 
 
+MIN_ARM_JOINTS = 3
+"""Fewest moving joints before the first branch of an arm's tree (a camera needs 3 to aim)."""
+
+
 def example_robot_data_arms() -> list[str]:
-    """example-robot-data names with a fixed base: arms to mount on a platform.
+    """example-robot-data names that can be mounted on a platform as an arm.
 
-    The others (legged robots, humanoids, drones) have a free-flyer root and cannot be arms.
-    Read from the loaders' class attributes; nothing is loaded.
+    An arm has a fixed base (legged robots, humanoids and drones have a free-flyer root) and
+    a single chain of at least :data:`MIN_ARM_JOINTS` moving joints from its root before its
+    tree branches, holding at least half of its moving joints (:func:`chain_joints`; a
+    gripper's fingers may branch off its end): hands (fingers branch at the palm), torsos
+    carrying two arms, mobile robots (wheels branch at the base) and two-joint pendulums are
+    not arms. Read from each URDF's joint tags; no model is built.
     """
-    from example_robot_data.robots_loader import ROBOTS
+    from example_robot_data.robots_loader import ROBOTS, getModelPath
 
-    return sorted(
-        name for name, loader in ROBOTS.items() if not loader.free_flyer and loader.urdf_filename
-    )
+    arms = []
+    for name, loader in ROBOTS.items():
+        if loader.free_flyer or not loader.urdf_filename:
+            continue
+        relative = Path(loader.path) / loader.urdf_subpath / loader.urdf_filename
+        urdf = Path(getModelPath(str(relative))) / relative
+        chain, total = chain_joints(urdf)
+        if chain >= MIN_ARM_JOINTS and 2 * chain >= total:
+            arms.append(name)
+    return sorted(arms)
+
+
+def chain_joints(urdf: Path) -> tuple[int, int]:
+    """Moving joints on the unbranched chain from a URDF's root, and in the whole file.
+
+    Fixed joints are followed through; the chain stops at the first link with two or more
+    child subtrees holding a moving joint. ``(0, 0)`` for an unreadable file.
+    """
+    try:
+        joints = ElementTree.parse(urdf).getroot().findall("joint")
+    except (OSError, ElementTree.ParseError):
+        return 0, 0
+    children: dict[str, list[tuple[str, bool]]] = {}
+    for joint in joints:
+        parent, child = joint.find("parent"), joint.find("child")
+        if parent is None or child is None:
+            return 0, 0
+        moving = joint.get("type") not in ("fixed", None)
+        children.setdefault(parent.get("link", ""), []).append((child.get("link", ""), moving))
+    parents = {child for kids in children.values() for child, _ in kids}
+    roots = [link for link in children if link not in parents]
+    total = sum(moving for kids in children.values() for _, moving in kids)
+    count, link = 0, roots[0] if len(roots) == 1 else ""
+    while True:
+        moving_kids = [(c, m) for c, m in children.get(link, []) if _moves(children, c, m)]
+        if len(moving_kids) != 1:
+            return count, total
+        link, moving = moving_kids[0]
+        count += moving
+
+
+def _moves(children: dict[str, list[tuple[str, bool]]], link: str, moving: bool) -> bool:
+    """Whether the joint into ``link`` or any joint below it moves."""
+    stack = [(link, moving)]
+    while stack:
+        link, moving = stack.pop()
+        if moving:
+            return True
+        stack += children.get(link, [])
+    return False
 
 
 def build_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileManipulator:

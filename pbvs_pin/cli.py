@@ -1,8 +1,11 @@
 """The ``pbvs-pin`` command.
 
 Every subcommand prints a package error (:class:`pbvs_pin.exceptions.PbvsError`) as one line
-on stderr, without a traceback, and exits with status 2. Ctrl-C prints one line and exits with
-status 130; during ``run`` the run so far is saved first (:class:`RunInterrupted`).
+on stderr, without a traceback, and exits with status 2. Every file or folder a subcommand
+writes is declared with :func:`output_option` and checked (:func:`pbvs_pin.outputs.check_output`)
+before the subcommand starts. Ctrl-C prints one line and exits with status 130; during a
+simulation it is held until the next logged instant (:mod:`pbvs_pin.interrupts`), so that it
+never lands inside compiled code, and the run so far is saved first (:class:`RunInterrupted`).
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import os
 import sys
 import tomllib
 from collections.abc import Callable, Sequence
+from contextlib import nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,13 +28,17 @@ from pbvs_pin.exceptions import (
     RobotNotFound,
     RunInterrupted,
     ScenarioError,
+    UsageError,
     ViewerUnavailable,
 )
+from pbvs_pin.interrupts import held_interrupts, interrupted_in_compiled_code
+from pbvs_pin.outputs import Output, check_output, replace_run_folder
 from pbvs_pin.report import ENGINE_ROBOTS
 from pbvs_pin.validation import positive_number
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
+    from pbvs_pin.sim.scenario import Scenario
 
 
 def load_robot_argument(argument: str) -> MobileManipulator:
@@ -104,8 +112,8 @@ def _list(args: argparse.Namespace) -> None:
     sections = (
         ("shipped robots (pbvs-pin info NAME; [robot] name = NAME)", ROBOT_NAMES),
         (
-            "example-robot-data arms (fixed base; [robot] arm = NAME with base, camera_link, "
-            "camera_pose: see the README)",
+            "example-robot-data arms (one chain of at least 3 joints; [robot] arm = NAME with "
+            "base, camera_link, camera_pose: see the README)",
             example_robot_data_arms(),
         ),
         ("scenarios (pbvs-pin run NAME)", shipped_scenarios()),
@@ -116,20 +124,76 @@ def _list(args: argparse.Namespace) -> None:
         print("\n".join(f"  {name}" for name in names))
 
 
+def _run_scenario(args: argparse.Namespace) -> Scenario:
+    """The scenario of ``run`` with its ``--robot``, ``--engine``, ``--duration`` and ``--set``.
+
+    Raises:
+        ScenarioError: If the scenario, the robot or a changed value is invalid.
+    """
+    from pbvs_pin.experiments import with_robot
+    from pbvs_pin.sim.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    if args.robot is not None:
+        scenario = with_robot(scenario, args.robot)
+    changes = dict(_setting(text) for text in args.set)
+    if args.engine is not None:
+        changes["plant.engine"] = args.engine
+    if args.duration is not None:
+        changes["duration"] = args.duration
+    return scenario.with_values(**changes) if changes else scenario
+
+
+def _setting(text: str) -> tuple[str, object]:
+    """``key=value`` of ``--set``, its value read as TOML, or as text where it is not TOML.
+
+    ``1.5``, ``[0, 1]`` and ``true`` are TOML; ``controller.law=ibvs`` gives the text ``ibvs``.
+
+    Raises:
+        UsageError: If there is no ``=`` or no key.
+    """
+    key, equals, value = text.partition("=")
+    if not equals or not key.strip():
+        raise UsageError("--set", f"expected key=value (e.g. camera.rate=60), got {text!r}")
+    try:
+        parsed: object = tomllib.loads(f"value = {value.strip()}")["value"]
+    except tomllib.TOMLDecodeError:
+        parsed = value.strip()
+    return key.strip(), parsed
+
+
+def _verdict(summary: dict) -> str | None:
+    """One line: whether a shipped experiment's run meets the paper's claim, and the rule."""
+    from pbvs_pin.report import CLAIMS, claim_met
+
+    met = claim_met(summary)
+    if met is None:
+        return None
+    claim = CLAIMS[summary["scenario"]]
+    return (
+        f"verdict: {summary['scenario']} {'meets' if met else 'does NOT meet'} the paper's "
+        f"claim ({claim.text}); rule: {claim.rule}"
+    )
+
+
 def _run(args: argparse.Namespace) -> None:
     """Run one scenario, optionally with a live Meshcat view (the run goes on without one)."""
     from pbvs_pin.experiments import run_scenario
-    from pbvs_pin.sim.log import check_writable
 
+    if args.speed is not None and not args.meshcat:
+        raise UsageError("--speed", "only applies to the live view; add --meshcat or drop it")
+    speed = 1.0 if args.speed is None else args.speed
     out = Path(args.out)
     html = Path(args.html) if args.html else None
+    scenario = _run_scenario(args)
+    if args.force:
+        replace_run_folder(out)
     live = None
     if args.meshcat:
         from pbvs_pin.viz.live import LiveView
 
-        check_writable(out, *([html] if html else []))  # before the server starts
         try:
-            live = LiveView(args.scenario, speed=args.speed)
+            live = LiveView(scenario, speed=speed)
         except ViewerUnavailable as err:
             watch = f"the replay will be in {html}" if html else "add --html FILE to watch a replay"
             print(
@@ -137,13 +201,18 @@ def _run(args: argparse.Namespace) -> None:
                 file=sys.stderr,
             )
     if live is None:
-        summary = run_scenario(args.scenario, out, html)[1]
+        summary = run_scenario(scenario, out, html)[1]
     else:
         with live:
-            print(f"live view: {live.url} (playing at {args.speed:g}x real time)")
-            summary = run_scenario(args.scenario, out, html, observer=live.show)[1]
-    print(json.dumps(summary, indent=2))
+            print(f"live view: {live.url} (playing at {speed:g}x real time)")
+            summary = run_scenario(scenario, out, html, observer=live.show)[1]
+    from pbvs_pin.sim.log import json_safe
+
+    print(json.dumps(json_safe(summary), indent=2))
     print(f"log, summary and figures written to {out}" + (f"; replay: {html}" if html else ""))
+    verdict = _verdict(summary)
+    if verdict is not None:
+        print(verdict)
 
 
 def _compile(args: argparse.Namespace) -> None:
@@ -170,11 +239,16 @@ def _compile(args: argparse.Namespace) -> None:
 
 def _reproduce(args: argparse.Namespace) -> None:
     """Run the paper's four experiments and write the report."""
-    from pbvs_pin.experiments import reproduce
+    from pbvs_pin.experiments import reproduce, with_robot
+    from pbvs_pin.sim.scenario import load_scenario
 
-    for robot in [*args.robots, *args.engines]:
+    for robot in args.engines:
         if robot not in ROBOT_NAMES:
             raise RobotNotFound(robot, ROBOT_NAMES)
+    for robot in args.robots:  # a name, a URDF or a robot file: checked before any run
+        with_robot(load_scenario("experiment1"), robot)
+    if args.force:
+        replace_run_folder(Path(args.out))
     report = reproduce(
         Path(args.out),
         robots=tuple(args.robots),
@@ -200,7 +274,9 @@ def _analyze(args: argparse.Namespace) -> None:
     result = analyze_run(
         Path(args.log), args.epsilon, Path(args.out) if args.out else None, t1=args.t1
     )
-    print(json.dumps(result, indent=2))
+    from pbvs_pin.sim.log import json_safe
+
+    print(json.dumps(json_safe(result), indent=2))
 
 
 def _sweep(args: argparse.Namespace) -> None:
@@ -241,6 +317,42 @@ ROBOT_HELP = (
 """Help of the robot argument of ``info`` and ``view``."""
 
 
+def output_option(
+    parser: argparse.ArgumentParser, flag: str, kind: Output, **kwargs
+) -> argparse.Action:
+    """Add an option or argument naming something the command writes, checked before it runs.
+
+    Every file or folder a command writes goes through here: :func:`main` checks each one
+    with :func:`pbvs_pin.outputs.check_output` before calling the command.
+
+    Args:
+        parser: The command's parser.
+        flag: The option, e.g. ``"--out"``.
+        kind: What is written there.
+        kwargs: As :meth:`argparse.ArgumentParser.add_argument`.
+    """
+    action = parser.add_argument(flag, **kwargs)
+    declared = parser.get_default("outputs") or ()
+    parser.set_defaults(outputs=(*declared, (action.dest, kind)))
+    return action
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Check every output the command declared (:func:`output_option`), creating nothing.
+
+    Raises:
+        OutputError: For the first path that cannot be written.
+    """
+    for dest, kind in getattr(args, "outputs", ()):
+        value = getattr(args, dest)
+        if value is not None:
+            check_output(Path(value), kind, force=getattr(args, "force", False))
+
+
+FORCE_HELP = "replace all files of an earlier run in the output folder"
+"""Help of ``--force`` of ``run`` and ``reproduce``."""
+
+
 class _DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """Help that shows each option's default, unless it has none (None, False)."""
 
@@ -267,6 +379,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Passivity-based visual servoing of mobile manipulators (Pinocchio).",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.set_defaults(simulates=False)  # run, compile, reproduce: Ctrl-C held (interrupts)
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     info = commands.add_parser("info", help="describe a robot (name, URDF or TOML [robot])")
     info.add_argument("robot", help=ROBOT_HELP)
@@ -281,30 +394,44 @@ def build_parser() -> argparse.ArgumentParser:
         help="shipped scenario name (experiment1 ... experiment4; see `pbvs-pin list`) or a "
         "scenario TOML file",
     )
-    run.add_argument("--out", default="results/run", help="output folder")
-    run.add_argument("--html", help="also write a standalone HTML replay to this file")
+    run.add_argument(
+        "--robot", help="robot instead of the scenario's: " + ROBOT_HELP.replace(" or a ", ", a ")
+    )
+    run.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="change a scenario key, e.g. --set camera.rate=60 --set target.xi_d=[0,50,-50] "
+        "(repeatable; `pbvs-pin run --help` keys are those of the scenario reference)",
+    )
+    run.add_argument("--engine", choices=("pinocchio", "mujoco"), help="physics of the plant")
+    run.add_argument("--duration", type=_positive_float, help="simulated time [s]")
+    output_option(run, "--out", Output.RUN_FOLDER, default="results/run", help="output folder")
+    output_option(run, "--html", Output.FILE, help="also write a standalone HTML replay here")
+    run.add_argument("--force", action="store_true", help=FORCE_HELP)
     run.add_argument("--meshcat", action="store_true", help="open a live Meshcat view")
     run.add_argument(
         "--speed",
         type=_positive_float,
-        default=1.0,
-        help="with --meshcat: simulated seconds shown per second; 1 is real time",
+        help="with --meshcat: simulated seconds shown per second (default 1, real time)",
     )
-    run.set_defaults(handler=_run)
+    run.set_defaults(handler=_run, simulates=True)
     compiling = commands.add_parser(
         "compile",
         help="compile the control kernels now (once after installing; else the first run does)",
     )
-    compiling.set_defaults(handler=_compile)
+    compiling.set_defaults(handler=_compile, simulates=True)
     reproduce = commands.add_parser("reproduce", help="run the paper's four experiments")
-    reproduce.add_argument("--out", default="results", help="output folder")
+    output_option(reproduce, "--out", Output.RUN_FOLDER, default="results", help="output folder")
+    reproduce.add_argument("--force", action="store_true", help=FORCE_HELP)
     reproduce.add_argument(
         "--robots",
         nargs="*",
         default=list(OTHER_ROBOTS),
-        metavar="NAME",
-        help="shipped robots to repeat the experiments on besides the reference robot "
-        "(none: give the option alone)",
+        metavar="ROBOT",
+        help="robots to repeat the experiments on besides the reference robot: shipped names, "
+        "URDF files or robot files (TOML with a [robot] table); none: give the option alone",
     )
     reproduce.add_argument(
         "--engines",
@@ -325,20 +452,22 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="skip the comparison of the compensation modes (8 runs)",
     )
-    reproduce.set_defaults(handler=_reproduce)
+    reproduce.set_defaults(handler=_reproduce, simulates=True)
     view = commands.add_parser("view", help="show a robot, its camera frame and frustum")
     view.add_argument("robot", help=ROBOT_HELP)
-    view.add_argument("--html", help="write a standalone HTML file instead of serving")
+    output_option(
+        view, "--html", Output.FILE, help="write a standalone HTML file instead of serving"
+    )
     view.set_defaults(handler=_view)
     analyze = commands.add_parser("analyze", help="passivity and L2-gain analysis of a run")
     analyze.add_argument("log", help="a run's log.npz (or its folder)")
     analyze.add_argument("--epsilon", type=float, default=0.5, help="epsilon of eq. (31)")
-    analyze.add_argument("--out", help="folder for the analysis report and plots")
+    output_option(analyze, "--out", Output.FOLDER, help="folder for the analysis report and plots")
     analyze.add_argument("--t1", type=float, help="start [s] of the ultimate-bound window")
     analyze.set_defaults(handler=_analyze)
     sweep = commands.add_parser("sweep", help="run a grid or random sample of scenarios")
     sweep.add_argument("spec", help="sweep specification (TOML)")
-    sweep.add_argument("--out", default="results/sweep", help="output folder")
+    output_option(sweep, "--out", Output.FOLDER, default="results/sweep", help="output folder")
     sweep.add_argument("--scheduler", help="Dask scheduler address (default: local processes)")
     sweep.add_argument("--workers", type=int, help="local worker processes")
     sweep.add_argument("--max-runs", type=int, help="stop after this many new runs")
@@ -361,7 +490,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler: Callable[[argparse.Namespace], None] = args.handler
     try:
-        handler(args)
+        check_outputs(args)
+        with held_interrupts() if args.simulates else nullcontext():
+            handler(args)
     except PbvsError as err:
         print(f"pbvs-pin: error: {err}", file=sys.stderr)
         return 2
@@ -369,6 +500,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"pbvs-pin: {_interrupted(stop)}", file=sys.stderr)
         return INTERRUPTED
     except KeyboardInterrupt:
+        print("pbvs-pin: interrupted", file=sys.stderr)
+        return INTERRUPTED
+    except SystemError as err:  # Ctrl-C outside a simulation, inside a compiled kernel
+        if not interrupted_in_compiled_code(err):
+            raise
         print("pbvs-pin: interrupted", file=sys.stderr)
         return INTERRUPTED
     except BrokenPipeError:  # e.g. `pbvs-pin list | head`: the reader left, nothing to say

@@ -67,7 +67,7 @@ from pbvs_pin.control.tracking import TargetTracker
 from pbvs_pin.control.upright import upright_row
 from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
 from pbvs_pin.features import ImageMeasurement, TwoSphereFeatures
-from pbvs_pin.robot import UNIT_TOLERANCE, MobileManipulator
+from pbvs_pin.robot import UNIT_TOLERANCE, MobileManipulator, arm_angles
 from pbvs_pin.validation import as_array
 
 JUMP_SLACK = (0.05, 0.1)
@@ -453,7 +453,8 @@ class Controller:
     ) -> tuple[ControlOutput, tuple[np.ndarray, np.ndarray] | None]:
         """Kinematic controller on the measurement; zero command when there is none."""
         model = self.model
-        state = SecondaryInput(model.arm_positions(q), self.laser[0], self.laser[1], dt)
+        theta = arm_angles(q, model.arm_q_indices, model.arm_continuous)  # q checked by step
+        state = SecondaryInput(theta, self.laser[0], self.laser[1], dt)
         secondary = secondary_vector(self.objectives, state, model.n_base, model.n)
         if measurement is None:
             return self.law.zero_output(self.features.size), None

@@ -266,3 +266,48 @@ class SweepIncomplete(PbvsError):
 
 class RenderingUnavailable(PbvsError):
     """The rendered camera cannot draw: no offscreen OpenGL context, or nothing to draw."""
+
+
+class UsageError(PbvsError):
+    """Command-line options that contradict each other, or one that needs another."""
+
+    def __init__(self, option: str, problem: str) -> None:
+        """Name the option and the problem.
+
+        Args:
+            option: The option at fault, e.g. ``"--speed"``.
+            problem: What is wrong and what to give instead.
+        """
+        self.option = option
+        super().__init__(f"{option}: {problem}")
+
+
+class LogError(PbvsError):
+    """A file read as a run log is missing, truncated, foreign, or lacks a channel."""
+
+    def __init__(self, source: str, problem: str) -> None:
+        """Name the file and the problem.
+
+        Args:
+            source: Path of the log.
+            problem: What is wrong and what was expected.
+        """
+        self.source = source
+        super().__init__(f"{source}: {problem}")
+
+
+class WrongType(PbvsError):
+    """An argument is of the wrong kind: text, an object or a ragged list for numbers, say."""
+
+    def __init__(self, name: str, expected: str, value: object) -> None:
+        """Name the argument, what was expected and what was given.
+
+        Args:
+            name: Name of the argument or field.
+            expected: What it must be, e.g. ``"a number"``.
+            value: The value given (shown shortened, with its type).
+        """
+        self.name = name
+        shown = repr(value)
+        shown = shown if len(shown) <= 40 else shown[:37] + "..."
+        super().__init__(f"{name}: expected {expected}, got {shown} ({type(value).__name__})")

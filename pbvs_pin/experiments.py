@@ -6,13 +6,26 @@ and assembles the page.
 
 from __future__ import annotations
 
-import json
+import tomllib
 from collections.abc import Callable
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Any
 
-from pbvs_pin.catalogue import OTHER_ROBOTS, REFERENCE_ROBOT
-from pbvs_pin.exceptions import GainError, OutputError, RunInterrupted
+from pbvs_pin.catalogue import OTHER_ROBOTS, REFERENCE_ROBOT, ROBOT_NAMES
+from pbvs_pin.exceptions import (
+    GainError,
+    OutputError,
+    RobotNotFound,
+    RunInterrupted,
+    ScenarioError,
+)
+from pbvs_pin.interrupts import (
+    interrupt_point,
+    interrupts_held,
+    simulating,
+    with_interrupt_point,
+)
 from pbvs_pin.report import (
     CLAIMS,
     COMPENSATION_MODES,
@@ -25,10 +38,15 @@ from pbvs_pin.report import (
     run_row,
     runs_table,
 )
-from pbvs_pin.sim.log import RunLog, check_writable, write_text_atomically
+from pbvs_pin.sim.log import (
+    RunLog,
+    check_writable,
+    write_json_atomically,
+    write_text_atomically,
+)
 from pbvs_pin.sim.loop import Snapshot, simulate
 from pbvs_pin.sim.metrics import summarize
-from pbvs_pin.sim.scenario import Scenario, load_scenario
+from pbvs_pin.sim.scenario import Scenario, load_scenario, parse_scenario
 
 PAPER_CLAIMS = {name: claim.text for name, claim in CLAIMS.items()}
 """The paper's claim for each experiment (§5); the rules are in :data:`pbvs_pin.report.CLAIMS`."""
@@ -78,15 +96,19 @@ def run_scenario(
     check_writable(out, *([html] if html is not None else []))
     if eye_view not in (None, "strip", "video"):
         raise GainError(f"eye view: expected 'strip' or 'video', got {eye_view!r}", "eye_view")
+    held = interrupts_held()  # Ctrl-C taken at a logged instant, never inside compiled code
     try:
-        log = simulate(scenario, progress=progress, observer=observer)
+        with simulating() if held else nullcontext():
+            observer = with_interrupt_point(observer) if held else observer
+            log = simulate(scenario, progress=progress, observer=observer)
     except RunInterrupted as stop:
         if stop.log is not None:
             stop.saved = str(stop.log.save(out))
         raise
     log.save(out)
     summary = summarize(log)
-    write_text_atomically(out / "summary.json", json.dumps(summary, indent=2))
+    write_json_atomically(out / "summary.json", summary)
+    interrupt_point()  # a Ctrl-C held after the last logged instant: the run is saved
     try:
         if figures:
             if status is not None:
@@ -109,6 +131,37 @@ def run_scenario(
         where = err.filename or out
         raise OutputError(str(where), f"cannot write ({err.strerror or err})") from err
     return log, summary
+
+
+def with_robot(scenario: Scenario, robot: str) -> Scenario:
+    """``scenario`` on another robot: a shipped name, a URDF file, or a robot file.
+
+    A robot file is a TOML file with a ``[robot]`` table (its relative paths are read against
+    its folder); a URDF file needs a ``camera_optical_frame``.
+
+    Raises:
+        RobotNotFound: If ``robot`` is neither a file nor a shipped name.
+        ScenarioError: If the robot file has no ``[robot]`` table or the table is invalid.
+    """
+    if Path(robot).suffix.lower() == ".toml":
+        source = load_scenario(robot)  # names the file and field of any bad value
+        if "robot" not in tomllib.loads(Path(robot).read_text(encoding="utf-8")):
+            raise ScenarioError(robot, "robot", "no [robot] table (expected a robot file)")
+        table = source.to_toml()["robot"]
+    elif Path(robot).suffix.lower() == ".urdf" or Path(robot).is_file():
+        table = {"urdf": str(Path(robot).resolve()), "camera_frame": "camera_optical_frame"}
+    elif robot in ROBOT_NAMES:
+        table = {"name": robot}
+    else:
+        raise RobotNotFound(robot, ROBOT_NAMES)
+    raw = scenario.to_toml()
+    raw["robot"] = table
+    return parse_scenario(raw, scenario.source)
+
+
+def robot_label(robot: str) -> str:
+    """A robot's folder name in a reproduction: its name, or its file's stem."""
+    return Path(robot).stem if Path(robot).suffix else robot
 
 
 def reproduce(
@@ -179,8 +232,8 @@ def reproduce(
         echo(f"  {name}: passivity and L2-gain analysis")
         analyses.append(analyze_run(folder, out=folder / "analysis"))
         for robot in robots:
-            scenario = load_scenario(name).with_values(**{"robot.name": robot})
-            others.append(finished(run_scenario(scenario, out / robot / name)[1]))
+            scenario = with_robot(load_scenario(name), robot)
+            others.append(finished(run_scenario(scenario, out / robot_label(robot) / name)[1]))
         if baseline:
             ibvs_log, ibvs = run_scenario(baseline_scenario(name, gain), out / "ibvs" / name)
             classic.append(finished(ibvs))
@@ -229,9 +282,7 @@ def _engine_runs(
     """
     rows = []
     for robot in engines:
-        pinocchio = next(
-            (s for s in made if s["scenario"] == name and s["robot"] == robot), None
-        )
+        pinocchio = next((s for s in made if s["scenario"] == name and s["robot"] == robot), None)
         scenario = load_scenario(name).with_values(**{"robot.name": robot})
         if pinocchio is None:
             pinocchio = finished(run_scenario(scenario, out / robot / name, figures=False)[1])

@@ -23,10 +23,23 @@ from numba import njit
 from pbvs_pin.camera import MIN_DEPTH, CameraIntrinsics, point_jacobians
 from pbvs_pin.exceptions import GainError, PointBehindCamera, ShapeError
 from pbvs_pin.linalg import matmul
-from pbvs_pin.validation import as_array
+from pbvs_pin.validation import as_array, as_matrix, as_numbers, as_rows, convert_fields
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
+
+
+def _checked_already(points: object, depths: object) -> bool:
+    """Whether ``points`` and ``depths`` are float64 arrays of shapes (k, 2) and (k,)."""
+    return (
+        isinstance(points, np.ndarray)
+        and isinstance(depths, np.ndarray)
+        and points.dtype == np.float64
+        and depths.dtype == np.float64
+        and points.ndim == 2
+        and points.shape[1] == 2
+        and depths.shape == (points.shape[0],)
+    )
 
 
 @dataclass(frozen=True)
@@ -40,6 +53,23 @@ class ImageMeasurement:
 
     points: np.ndarray
     depths: np.ndarray
+
+    def __post_init__(self) -> None:
+        """Convert both to float arrays, ``(k, 2)`` and ``(k,)`` (NaN kept: a lost point).
+
+        Raises:
+            WrongType: If either is not numbers.
+            ShapeError: If the shapes differ from ``(k, 2)`` and ``(k,)``.
+        """
+        if _checked_already(self.points, self.depths):
+            return  # float arrays of (k, 2) and (k,): the control loop's own measurements
+        points = as_rows("points", self.points, 2, finite=False)
+        rows = len(points)
+        depths = as_numbers("depths", self.depths)
+        if depths.shape != (rows,):
+            raise ShapeError("depths", (rows,), depths.shape)
+        object.__setattr__(self, "points", points)
+        object.__setattr__(self, "depths", depths)
 
 
 @njit(cache=True, inline="always")
@@ -140,7 +170,8 @@ class FeatureSet(abc.ABC):
             Shape (r, 3) [px/m].
         """
         stacked = point_jacobians(measurement.points, measurement.depths, camera.focal_px)[1]
-        return (stacked @ rotation_world_to_camera)[self.rows]
+        rotation = as_array("rotation_world_to_camera", rotation_world_to_camera, (3, 3))
+        return (stacked @ rotation)[self.rows]
 
     def jacobians_from_measurement(
         self,
@@ -161,13 +192,15 @@ class FeatureSet(abc.ABC):
         Returns:
             ``xi`` [px] shape (r,), ``J`` shape (r, n), ``J_o`` shape (r, 3).
         """
+        camera_jacobian = as_matrix("camera_jacobian", camera_jacobian, 6)
+        rotation = as_array("rotation_world_to_camera", rotation_world_to_camera, (3, 3))
         return feature_jacobians(
             measurement.points,
             measurement.depths,
             self.rows,
             camera.focal_px,
             camera_jacobian,
-            np.ascontiguousarray(rotation_world_to_camera),
+            np.ascontiguousarray(rotation),
         )
 
     def measure(
@@ -249,6 +282,7 @@ class TwoSphereFeatures(FeatureSet):
 
     def __post_init__(self) -> None:
         """Reject a non-positive diameter."""
+        convert_fields(self, numbers=("diameter",))
         if not np.isfinite(self.diameter) or self.diameter <= 0.0:
             raise GainError(f"TwoSphereFeatures.diameter: expected > 0 m, got {self.diameter}")
 
@@ -275,6 +309,7 @@ class ImagePointFeatures(FeatureSet):
 
     def __post_init__(self) -> None:
         """Reject a non-positive count."""
+        convert_fields(self, counts=("count",))
         if self.count < 1:
             raise GainError(f"ImagePointFeatures.count: expected >= 1, got {self.count}")
 

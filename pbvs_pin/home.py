@@ -48,7 +48,7 @@ The result is deterministic and depends on the model only: the starts are the ze
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -58,6 +58,7 @@ from scipy.optimize import least_squares, minimize
 
 from pbvs_pin.exceptions import GainError, HomeNotFound
 from pbvs_pin.manipulability import arm_manipulability
+from pbvs_pin.validation import as_count, convert_fields
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -111,6 +112,7 @@ class HomeCriteria:
 
     def __post_init__(self) -> None:
         """Reject an empty band, a non-positive tolerance, a margin outside [0, 0.5)."""
+        convert_fields(self, tuple(field.name for field in fields(self)))
         for low, high in (("min_height", "max_height"), ("min_ahead", "max_ahead")):
             if not getattr(self, high) > getattr(self, low):
                 raise GainError(
@@ -369,6 +371,8 @@ def compute_home(
             ``criteria.max_forward_error`` of the platform's x axis.
     """
     criteria = criteria or HomeCriteria()
+    starts, seed = as_count("starts", starts), as_count("seed", seed)
+    refine = as_count("refine", refine, minimum=1)
     lower, upper, limited = _limits(robot)
     margin = np.where(limited, criteria.limit_margin * (upper - lower), 0.0)
     bounds = (lower + margin, upper - margin)

@@ -16,6 +16,9 @@ import numpy.typing as npt
 import pinocchio as pin
 from scipy.optimize import minimize
 
+from pbvs_pin.exceptions import WrongType
+from pbvs_pin.validation import as_count, as_numbers
+
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
 
@@ -35,7 +38,9 @@ def manipulability(jacobian: npt.ArrayLike) -> float | np.ndarray:
     Returns:
         A float for one Jacobian, else an array of shape (...).
     """
-    jacobian = np.asarray(jacobian, dtype=float)
+    jacobian = as_numbers("jacobian", jacobian)
+    if jacobian.ndim < 2:
+        raise WrongType("jacobian", "a matrix, shape (r, n), or a stack of them", jacobian)
     values = np.prod(np.linalg.svd(jacobian, compute_uv=False), axis=-1)
     return float(values) if jacobian.ndim == 2 else values
 
@@ -87,6 +92,7 @@ def max_manipulability_posture(
     Returns:
         ``theta_d`` [rad or m]. Shape (n_arm,).
     """
+    starts, seed = as_count("starts", starts), as_count("seed", seed)
     lower, upper = robot.arm_position_limits()
     lower = np.where(np.isfinite(lower), lower, -np.pi) + LIMIT_MARGIN
     upper = np.where(np.isfinite(upper), upper, np.pi) - LIMIT_MARGIN

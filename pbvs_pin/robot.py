@@ -35,7 +35,7 @@ from pbvs_pin.base import BaseAdapter, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.exceptions import FrameNotFound, GainError, NoMovableJoint, UrdfError
 from pbvs_pin.urdf_checks import check_meshes
-from pbvs_pin.validation import as_array, as_se3
+from pbvs_pin.validation import as_array, as_number, as_path, as_se3
 
 PAYLOAD_RADIUS = 0.02
 """Radius [m] of a payload's solid sphere (:meth:`MobileManipulator.with_payload`)."""
@@ -299,6 +299,7 @@ class MobileManipulator:
             UrdfError: If the robot was not built from a URDF description.
         """
         description = getattr(self, "_description", None)
+        path = as_path("path", path)
         if description is None:
             raise UrdfError(self.source, "no URDF description to write: build with from_urdf")
         return write_urdf(description, path)
@@ -315,6 +316,8 @@ class MobileManipulator:
         Returns:
             A new robot sharing nothing mutable with this one.
         """
+        kinematic_scale = as_number("kinematic_scale", kinematic_scale)
+        mass_scale = as_number("mass_scale", mass_scale)
         if not (kinematic_scale > 0 and mass_scale > 0):
             raise GainError(
                 f"model error: expected positive scales, got {kinematic_scale}, {mass_scale}"
@@ -351,6 +354,7 @@ class MobileManipulator:
         Returns:
             A new robot sharing nothing mutable with this one (this robot when ``mass`` is 0).
         """
+        mass = as_number("mass", mass)
         if not (np.isfinite(mass) and mass >= 0):
             raise GainError(f"payload: expected a mass >= 0 kg, got {mass}")
         if mass == 0:
@@ -438,7 +442,8 @@ class MobileManipulator:
 
         Continuous joints (stored as cos/sin) give their angle.
         """
-        return arm_angles(np.asarray(q, dtype=float), self.arm_q_indices, self.arm_continuous)
+        q = as_array("q", q, (self.model.nq,))
+        return arm_angles(q, self.arm_q_indices, self.arm_continuous)
 
     def with_arm_positions(self, q: npt.ArrayLike, arm: npt.ArrayLike) -> np.ndarray:
         """Copy of ``q`` with the arm joints set to ``arm`` [rad or m]. Shape (nq,).

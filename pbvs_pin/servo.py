@@ -56,6 +56,7 @@ from numba import njit
 
 from pbvs_pin.dynamics import DynamicTerms, actuated_terms, rigid_body_terms
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.validation import as_number, as_numbers
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -180,6 +181,8 @@ class ServoModel:
             prismatic: Time constant of a prismatic arm joint [s].
         """
         model = robot.model
+        platform = tuple(as_numbers("platform", platform).ravel())
+        revolute, prismatic = as_number("revolute", revolute), as_number("prismatic", prismatic)
         if len(platform) != robot.n_base:
             platform = (platform[0],) * robot.n_base
         taus, damping, friction = [*platform], [0.0] * robot.n_base, [0.0] * robot.n_base

@@ -56,6 +56,9 @@ READ_CASES = [
     ("xi0-strings", replaced(XI0, 'xi0 = ["a", "b", "c"]'), "target.xi0"),
     ("xi0-scalar", replaced(XI0, "xi0 = 3.0"), "target.xi0"),
     ("xi0-booleans", replaced(XI0, "xi0 = [true, false, true]"), "target.xi0"),
+    ("spheres-overlap", appended("diameter = 0.12\nseparation = 0.10"), "target.diameter"),
+    ("spheres-touch", replaced(XI_D, XI_D + "\ndiameter = 0.1\nseparation = 0.1"),
+     "target.diameter"),
     ("velocity-nested", appended("[motion]\nvelocity = [[0.1, 0.0], [0.0]]"), "motion.velocity"),
     ("amplitude-inf", appended("[motion]\namplitude = [inf, 0.0, 0.0]"), "motion.amplitude"),
     # integers

@@ -80,3 +80,21 @@ def test_comparison_figures_and_section(ibvs_experiment2):
     text = baseline_section([("experiment2", figures, figures)], 10.0)
     assert GAIN_RULE in text and text.count("| experiment2 |") == 2
     assert f"{rms:.2f}" in text
+
+
+def test_saturation_is_counted_for_the_baseline_law():
+    """The IBVS rows count the samples where u was scaled and where v_ref sits at a limit."""
+    from pbvs_pin.sim.log import RunLog
+
+    t = np.arange(6) * 1.0
+    limits = [1.0, 2.0]
+    v_ref = np.array([[0.5, 0.0], [1.0, 0.0], [0.2, -2.0], [0.0, 1.999], [-1.0, 2.0], [0, 0]])
+    log = RunLog({"t": t, "xi_true": np.zeros((6, 3)), "xi_d": np.zeros((6, 3)),
+                  "clearance": np.full(6, np.inf), "v_ref": v_ref,
+                  "saturated": np.array([0, 0, 1, 0, 0, 0], dtype=bool)},
+                 {"velocity_limits": limits})  # fmt: skip
+    figures = comparison_figures(log)
+    assert figures["saturated_samples"] == 1
+    assert figures["v_ref_at_limit_samples"] == 3  # rows 1, 2 and 4; 1.999 is below 2
+    text = baseline_section([("experiment1", figures, figures)], 1.0)
+    assert text.count("| 1 | 3 |") == 2

@@ -75,7 +75,7 @@ def test_list_names_robots_arms_scenarios_and_sweeps(capsys):
 @pytest.mark.parametrize(
     ("command", "fragments"),
     [
-        ("run", ("(default: results/run)", "(default: 1.0)", "shipped scenario name")),
+        ("run", ("(default: results/run)", "(default 1, real time)", "shipped scenario name")),
         (
             "reproduce",
             (
@@ -98,8 +98,8 @@ def test_help_shows_defaults(capsys, command, fragments):
     assert "(default: None)" not in out and "(default: False)" not in out
 
 
-def test_reproduce_refuses_an_unknown_robot_before_running(capsys):
-    status = main(["reproduce", "--robots", "pioneer_ur5", "iiwa"])
+def test_reproduce_refuses_an_unknown_robot_before_running(capsys, tmp_path):
+    status = main(["reproduce", "--robots", "pioneer_ur5", "iiwa", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err
     assert status == 2
     assert err.count("\n") == 1 and "'iiwa'" in err and "pioneer_cyton" in err

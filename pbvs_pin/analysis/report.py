@@ -8,14 +8,13 @@ and writes the report; :func:`report_markdown` sets both sides of every inequali
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 from pbvs_pin.analysis.analyze import analyze_log
 from pbvs_pin.analysis.plots import plot_analysis
-from pbvs_pin.exceptions import PbvsError
-from pbvs_pin.sim.log import RunLog
+from pbvs_pin.exceptions import LogError, OutputError, PbvsError
+from pbvs_pin.sim.log import CHANNELS, RunLog, write_json_atomically, write_text_atomically
 
 
 def analyze_run(
@@ -44,19 +43,24 @@ def analyze_run(
         raise PbvsError(
             f"{path}: no run log here (expected a log.npz of pbvs-pin run, or its folder)"
         )
+    log = RunLog.load(log_file)
+    missing = [name for name in CHANNELS if name not in log.channels]
+    if missing:
+        raise LogError(str(log_file), f"not a whole run log: no channel {', '.join(missing)}")
     try:
-        log = RunLog.load(log_file)
-    except (OSError, ValueError, KeyError) as err:
-        raise PbvsError(f"{log_file}: not a readable run log ({err})") from err
-    result = analyze_log(log, epsilon, t1, str(log_file))
+        result = analyze_log(log, epsilon, t1, str(log_file))
+    except KeyError as err:
+        raise LogError(str(log_file), f"not a whole run log: its meta has no {err}") from err
     if out is not None:
         out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
         files = [out / "analysis.json", out / "analysis.md"]
-        files[1].write_text(report_markdown(result))
-        files += plot_analysis(log, result, out)
+        write_text_atomically(files[1], report_markdown(result))
+        try:
+            files += plot_analysis(log, result, out)
+        except OSError as err:
+            raise OutputError(str(out), f"cannot write ({err.strerror or err})") from err
         result["files"] = [str(f) for f in files]
-        files[0].write_text(json.dumps(result, indent=2))
+        write_json_atomically(files[0], result)
     return result
 
 

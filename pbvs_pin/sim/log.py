@@ -28,6 +28,8 @@ import json
 import os
 import tempfile
 import time
+import zipfile
+import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
@@ -38,12 +40,14 @@ import numpy as np
 
 from pbvs_pin.base import DifferentialDrive
 from pbvs_pin.camera import MIN_DEPTH
-from pbvs_pin.exceptions import OutputError
+from pbvs_pin.exceptions import LogError, OutputError
 from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.manipulability import arm_jacobian, manipulability
+from pbvs_pin.outputs import Output, check_output
 from pbvs_pin.sim.obstacles import clearance
 from pbvs_pin.sim.scenario import obstacle_table
 from pbvs_pin.sim.sensing import planar_pose
+from pbvs_pin.validation import as_path
 
 if TYPE_CHECKING:
     from pbvs_pin.control.kinematic import ControlOutput
@@ -101,7 +105,7 @@ class RunLog:
         Raises:
             OutputError: If the folder or the file cannot be written.
         """
-        folder = Path(folder)
+        folder = as_path("folder", folder)
         path = folder / "log.npz"
         with atomic_file(path) as handle:
             np.savez_compressed(handle, meta=json.dumps(self.meta), **self.channels)
@@ -109,13 +113,32 @@ class RunLog:
 
     @classmethod
     def load(cls, path: str | Path) -> RunLog:
-        """Read a log written by :meth:`save` (a file or the folder holding ``log.npz``)."""
-        path = Path(path)
+        """Read a log written by :meth:`save` (a file or the folder holding ``log.npz``).
+
+        Raises:
+            LogError: If the file is missing, truncated or not a ``.npz`` archive, holds
+                objects (pickles are never read), has no JSON ``meta`` or no time channel
+                ``t``, or channels of another length than ``t``.
+        """
+        path = as_path("path", path)
         if path.is_dir():
             path = path / "log.npz"
-        with np.load(path) as data:
-            meta = json.loads(str(data["meta"]))
-            channels = {name: data[name] for name in data.files if name != "meta"}
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                meta = json.loads(str(data["meta"]))
+                channels = {name: data[name] for name in data.files if name != "meta"}
+        except FileNotFoundError as err:
+            raise LogError(str(path), "no such file (expected a run's log.npz)") from err
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as err:
+            raise LogError(str(path), f"not a readable run log ({type(err).__name__})") from err
+        if not isinstance(meta, dict) or "t" not in channels or channels["t"].ndim != 1:
+            raise LogError(str(path), "not a run log: no meta table or no time channel t")
+        length = len(channels["t"])
+        short = sorted(name for name, a in channels.items() if a.ndim == 0 or len(a) != length)
+        if short:
+            raise LogError(
+                str(path), f"channels {short} do not have the {length} samples of t (damaged)"
+            )
         return cls(channels, meta)
 
 
@@ -160,8 +183,9 @@ def atomic_file(path: Path) -> Iterator[BinaryIO]:
 def check_writable(folder: Path, *files: Path) -> None:
     """Make sure a run's outputs can be written, before the run: fail fast, not after it.
 
-    Creates ``folder`` and each file's folder (as the run would) and writes and removes a
-    temporary file in each; a file that exists must not be a folder.
+    The paths are first checked by the command line's guard
+    (:func:`pbvs_pin.outputs.check_output`); then ``folder`` and each file's folder are
+    created (as the run would) and a temporary file is written and removed in each.
 
     Args:
         folder: Output folder of the run.
@@ -170,9 +194,9 @@ def check_writable(folder: Path, *files: Path) -> None:
     Raises:
         OutputError: If a folder cannot be created or written, or a file is a folder.
     """
+    check_output(folder, Output.FOLDER)
     for path in files:
-        if path.is_dir():
-            raise OutputError(str(path), "is a folder; expected a file name")
+        check_output(path, Output.FILE)
     for place in dict.fromkeys([folder, *(path.parent for path in files)]):
         try:
             place.mkdir(parents=True, exist_ok=True)
@@ -193,6 +217,29 @@ def write_text_atomically(path: Path, text: str) -> None:
     """
     with atomic_file(path) as handle:
         handle.write(text.encode())
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with every NaN or infinite float replaced by None (JSON ``null``).
+
+    JSON has no NaN; Python writes a bare ``NaN`` that other readers refuse.
+    """
+    if isinstance(value, dict):
+        return {key: json_safe(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(item) for item in value]
+    if isinstance(value, float | np.floating) and not np.isfinite(value):
+        return None
+    return value
+
+
+def write_json_atomically(path: Path, data: Any) -> None:
+    """Write ``data`` as strict JSON (non-finite numbers as ``null``), atomically.
+
+    Raises:
+        OutputError: If the file cannot be written.
+    """
+    write_text_atomically(path, json.dumps(json_safe(data), indent=2, allow_nan=False))
 
 
 class RunRecorder:

@@ -41,6 +41,7 @@ from pbvs_pin.sim.sections import (
     SimulationSection,
     TargetSection,
 )
+from pbvs_pin.validation import as_path
 
 OBSTACLE_KINDS: dict[str, type[CircleObstacle | BoxObstacle]] = {
     "circle": CircleObstacle,
@@ -158,7 +159,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     Raises:
         ScenarioError: Unknown scenario, malformed TOML, or an invalid field.
     """
-    path = Path(name_or_path)
+    path = as_path("name_or_path", name_or_path)
     if not path.is_file():
         shipped = scenario_dir() / f"{name_or_path}.toml"
         if not shipped.is_file():

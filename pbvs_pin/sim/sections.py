@@ -291,6 +291,15 @@ class TargetSection(Section):
         (0.0, 60.0, -60.0), "Desired features xi_d = [u1, v1, v2] [px].", length=3
     )
 
+    def validate(self) -> None:
+        """Two separate spheres: the diameter must be below the centres' separation."""
+        if not self.diameter < self.separation:
+            raise GainError(
+                f"the spheres overlap: diameter {self.diameter:g} m is not below their "
+                f"separation {self.separation:g} m (expected diameter < separation)",
+                "diameter",
+            )
+
 
 @dataclass(frozen=True)
 class MotionSection(Section):

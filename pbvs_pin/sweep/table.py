@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from pbvs_pin.exceptions import PbvsError, ScenarioError
+from pbvs_pin.exceptions import OutputError, PbvsError, ScenarioError
 from pbvs_pin.sweep.runner import ANALYSIS_COLUMNS, TIMING_KEYS
 from pbvs_pin.sweep.spec import SweepSpec
 
@@ -76,8 +76,19 @@ class ResultTable:
             self._read()
 
     def _read(self) -> None:
-        """Load the rows; drop a half-written last line or malformed rows, then rewrite."""
-        text = self.path.read_text()
+        """Load the rows; drop a half-written last line or malformed rows, then rewrite.
+
+        Raises:
+            OutputError: If the table is not a readable UTF-8 file (a folder, binary data).
+        """
+        try:
+            text = self.path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as err:
+            raise OutputError(
+                str(self.path),
+                f"is not a readable results table ({getattr(err, 'strerror', None) or err}); "
+                "move it away or use another output folder",
+            ) from err
         repaired = bool(text) and not text.endswith("\n")
         if repaired:
             text = text[: text.rfind("\n") + 1]
@@ -179,6 +190,7 @@ def check_folder(spec: SweepSpec, out: Path, force: bool = False) -> None:
 
     Raises:
         ScenarioError: Naming the spec and the folder.
+        OutputError: If ``sweep.json`` cannot be written (e.g. a folder of that name).
     """
     meta_path = out / "sweep.json"
     has_results = any((out / name).exists() for name in (TABLE, TIMINGS))
@@ -221,7 +233,10 @@ def check_folder(spec: SweepSpec, out: Path, force: bool = False) -> None:
         "fields": list(spec.fields),
         "runs": len(spec.runs),
     }
-    meta_path.write_text(json.dumps(meta, indent=2))
+    try:
+        meta_path.write_text(json.dumps(meta, indent=2))
+    except OSError as err:
+        raise OutputError(str(meta_path), f"cannot be written ({err.strerror or err})") from err
 
 
 def write_parquet(csv_path: Path, path: Path) -> Path | None:
