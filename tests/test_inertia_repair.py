@@ -35,7 +35,9 @@ def bad_urdf(tmp_path):
     names = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
     values = (inertia[0, 0], inertia[0, 1], inertia[0, 2], inertia[1, 1], inertia[1, 2],
               inertia[2, 2])  # fmt: skip
-    element = "<inertia " + " ".join(f'{n}="{float(v)!r}"' for n, v in zip(names, values, strict=True))
+    element = "<inertia " + " ".join(
+        f'{n}="{float(v)!r}"' for n, v in zip(names, values, strict=True)
+    )
     text = (URDF_DIR / "pioneer_cyton.urdf").read_text()
     assert WHEEL_INERTIA in text
     path = tmp_path / "bad_inertia.urdf"
