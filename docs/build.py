@@ -33,7 +33,7 @@ from pbvs_pin.sim.sections import SECTIONS
 from pbvs_pin.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS, SWEEP_TABLE_DOCS
 
 DOCS = Path(__file__).resolve().parent
-HAND_WRITTEN = ("conf.py", "index.rst")
+HAND_WRITTEN = ("conf.py", "index.rst", "zoo.rst", "own_robot.rst")
 
 
 def heading(title: str, underline: str) -> str:

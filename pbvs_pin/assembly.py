@@ -14,6 +14,7 @@ sits exactly where the no-side-slip constraint holds.
 from __future__ import annotations
 
 import copy
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -223,6 +224,7 @@ def load_urdf(source: str | Path, repair_inertia: bool = False) -> UrdfSource:
     robot = copy.deepcopy(urdf.robot)
     repaired = check_physics(robot, str(path), repair_inertia)
     _absolute_mesh_paths(robot, path.resolve().parent)
+    _resolve_package_uris(robot, package_dirs, path.resolve().parents[:RENAMED_PACKAGE_DEPTH])
     label = str(path) if path.exists() else str(source)
     return UrdfSource(robot, label, package_dirs, axisless_joints(tree), tuple(repaired))
 
@@ -484,20 +486,33 @@ def keep_chain(source: UrdfSource, root: str | None, tip: str) -> None:
     source.repaired_inertias = tuple(link for link in source.repaired_inertias if link in kept)
 
 
-def _resolve_package_uris(robot: yourdfpy.Robot, package_dirs: tuple[str, ...]) -> None:
-    """Rewrite ``package://`` mesh URIs that exist under ``package_dirs`` as absolute paths."""
-    prefix = "package://"
+RENAMED_PACKAGE_DEPTH = 3
+"""Folders above a URDF searched for ``package://PKG/<path>``'s ``<path>`` when no ``PKG``
+folder holds it: a wheel that ships ROS packages under other folder names (rtb-data's
+``kuka_lbr_iiwa`` for ``kuka_lbr_iiwa_support``)."""
+
+
+def _resolve_package_uris(
+    robot: yourdfpy.Robot, package_dirs: tuple[str, ...], ancestors: Sequence[Path] = ()
+) -> None:
+    """Rewrite ``package://`` mesh URIs as absolute paths where the file is found.
+
+    ``package://PKG/path`` is looked for as ``<folder>/PKG/path`` for each of
+    ``package_dirs``, then as ``<folder>/path`` for each of ``ancestors`` (a renamed package).
+    """
     for link in robot.links:
         for element in [*link.visuals, *link.collisions]:
             mesh = element.geometry.mesh if element.geometry is not None else None
-            if mesh is None or mesh.filename is None or not mesh.filename.startswith(prefix):
+            uri = "" if mesh is None or mesh.filename is None else mesh.filename
+            if not uri.startswith(PACKAGE_PREFIX):
                 continue
-            relative = mesh.filename[len(prefix) :]
-            for folder in package_dirs:
-                candidate = Path(folder) / relative
-                if candidate.is_file():
-                    mesh.filename = str(candidate.resolve())
-                    break
+            relative = uri[len(PACKAGE_PREFIX) :]
+            inside = relative.partition("/")[2]
+            candidates = [Path(folder) / relative for folder in package_dirs]
+            candidates += [Path(folder) / inside for folder in ancestors]
+            found = next((c for c in candidates if c.is_file()), None)
+            if found is not None:
+                mesh.filename = str(found.resolve())
 
 
 def write_urdf(source: UrdfSource, path: str | Path) -> Path:
