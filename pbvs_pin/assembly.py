@@ -14,6 +14,7 @@ sits exactly where the no-side-slip constraint holds.
 from __future__ import annotations
 
 import copy
+import importlib.util
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -110,8 +111,6 @@ def _python_package(source: str) -> tuple[Path, tuple[str, ...]]:
     Raises:
         UrdfError: If the package is not installed or the file is not in it.
     """
-    import importlib.util
-
     name, _, relative = source[len(PACKAGE_PREFIX) :].partition("/")
     spec = importlib.util.find_spec(name) if name.isidentifier() else None
     if spec is None or not spec.submodule_search_locations:
@@ -182,7 +181,6 @@ def _parse_strictly(path: Path) -> etree._Element:
         raise UrdfError(str(path), f"not well-formed XML ({err})") from err
     except OSError as err:
         raise UrdfError(str(path), f"cannot be read ({err})") from err
-
 
 
 def load_urdf(source: str | Path, repair_inertia: bool = False) -> UrdfSource:
