@@ -255,11 +255,15 @@ def _rst_row(cells: list[str]) -> list[str]:
 
 
 def errors(rows: list[dict[str, Any]]) -> str:
-    """The runs that raised, one bullet each, with the error."""
+    """The runs that raised, one bullet per robot, plant and error, naming the experiments."""
+    failed: dict[tuple[str, str, str], list[str]] = {}
+    for row in rows:
+        if "error" in row:
+            key = (row["robot"], row["engine"], row["error"])
+            failed.setdefault(key, []).append(row["experiment"])
     return "".join(
-        f"- ``{r['robot']}`` {r['experiment']} on {r['engine']}: {r['error']}\n"
-        for r in rows
-        if "error" in r
+        f"- ``{robot}`` on {engine} ({', '.join(experiments)}): {error}\n"
+        for (robot, engine, error), experiments in failed.items()
     )
 
 
