@@ -23,6 +23,7 @@ from pbvs_pin.zoo import (
     PAGE_END,
     errors,
     load_zoo,
+    main,
     run_zoo,
     write_block,
     zoo_table,
@@ -95,3 +96,13 @@ def test_short_zoo_table_and_errors(short_zoo, tmp_path):
     page.write_text("no markers\n")
     with pytest.raises(OutputError, match="zoo table"):
         write_block(page, table)
+
+
+def test_command_line_reuses_the_runs_and_writes_the_page(short_zoo, tmp_path, capsys):
+    folder, out, _ = short_zoo
+    page = tmp_path / "zoo.rst"
+    page.write_text(f"{PAGE_BEGIN}\n{PAGE_END}\n")
+    main([str(folder), "--out", str(out), "--page", str(page), "--engines", "pinocchio",
+          "--experiments", "experiment1", "--duration", str(DURATION)])  # fmt: skip
+    assert "3 runs in" in capsys.readouterr().out
+    assert "stretch_re1" in page.read_text() and "no_such_link" in page.read_text()
