@@ -28,6 +28,8 @@ from pbvs_pin.exceptions import (
 )
 from pbvs_pin.report import ENGINE_ROBOTS
 from pbvs_pin.validation import positive_number
+from pbvs_pin.zoo import add_arguments as zoo_arguments
+from pbvs_pin.zoo import command as zoo_command
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -349,6 +351,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="adopt a folder with results whose sweep.json is missing or unreadable",
     )
     sweep.set_defaults(handler=_sweep)
+    zoo = commands.add_parser("zoo", help="the four experiments on every robot file of a folder")
+    zoo_arguments(zoo)
+    zoo.set_defaults(handler=zoo_command)
     return parser
 
 

@@ -11,7 +11,8 @@ the last 5 s, the target-lost samples, the largest excursion past a joint limit,
 oscillation RMS, the share of samples where the loop-gain net cut the gains, and whether the
 run meets the paper's claim by the report's rules (:data:`pbvs_pin.report.CLAIMS`).
 
-Run it with ``python -m pbvs_pin.zoo robots/ --out zoo_results --page docs/zoo.rst``.
+Run it with ``pbvs-pin zoo robots --out zoo_results --page docs/zoo.rst`` (or ``python -m
+pbvs_pin.zoo``).
 """
 
 from __future__ import annotations
