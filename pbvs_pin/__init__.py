@@ -25,6 +25,7 @@ from pbvs_pin.control.settings import ControllerSettings
 from pbvs_pin.controller import Controller, ServoCommand
 from pbvs_pin.dynamics import DynamicTerms, rigid_body_terms
 from pbvs_pin.exceptions import (
+    ChainError,
     ControlInputError,
     DriveAxleNotFound,
     FrameNotFound,
@@ -75,6 +76,7 @@ __all__ = [
     "CameraFrame",
     "CameraIntrinsics",
     "CameraSection",
+    "ChainError",
     "ColourDetector",
     "CompensationSection",
     "ControlInputError",

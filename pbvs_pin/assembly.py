@@ -14,6 +14,8 @@ sits exactly where the no-side-slip constraint holds.
 from __future__ import annotations
 
 import copy
+import importlib.util
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,6 +27,7 @@ from lxml import etree
 from pbvs_pin import frames
 from pbvs_pin.base import DifferentialDrive, skid_steer_factor
 from pbvs_pin.exceptions import (
+    ChainError,
     DriveAxleNotFound,
     FrameNotFound,
     RobotNotFound,
@@ -55,12 +58,15 @@ class UrdfSource:
         label: File path or name it was loaded from, used in error messages.
         package_dirs: Folders against which ``package://`` mesh URIs resolve.
         axisless: Joints written without ``<axis>`` (yourdfpy fills in URDF's default x).
+        repaired_inertias: Links whose inertia was repaired on loading
+            (:func:`pbvs_pin.urdf_checks.balance_inertia`).
     """
 
     robot: yourdfpy.Robot
     label: str
     package_dirs: tuple[str, ...]
     axisless: frozenset[str] = frozenset()
+    repaired_inertias: tuple[str, ...] = ()
 
     def link_names(self) -> list[str]:
         """Names of all links."""
@@ -95,8 +101,35 @@ def _example_robot_data(name: str) -> tuple[Path, tuple[str, ...]] | None:
     return Path(loader.df_path), (str(robots_dir), str(robots_dir.parents[1]))
 
 
+PACKAGE_PREFIX = "package://"
+"""Prefix of a URDF source inside an installed Python package: ``package://pkg/path.urdf``."""
+
+
+def _python_package(source: str) -> tuple[Path, tuple[str, ...]]:
+    """File path and package folders of ``package://<python package>/<path in it>``.
+
+    Raises:
+        UrdfError: If the package is not installed or the file is not in it.
+    """
+    name, _, relative = source[len(PACKAGE_PREFIX) :].partition("/")
+    spec = importlib.util.find_spec(name) if name.isidentifier() else None
+    if spec is None or not spec.submodule_search_locations:
+        raise UrdfError(
+            source,
+            f"no installed Python package {name!r} (expected package://<importable package>/"
+            "<path to the .urdf in it>; pip install the package that ships the robot)",
+        )
+    folder = Path(next(iter(spec.submodule_search_locations)))
+    path = folder / relative
+    if not path.is_file():
+        raise UrdfError(source, f"file not found: {path} (expected a .urdf file in {folder})")
+    return path, (str(path.parent), str(folder), str(folder.parent))
+
+
 def _resolve(source: str | Path) -> tuple[Path, tuple[str, ...]]:
-    """File path and package folders of a URDF source (path, shipped name, or ERD name)."""
+    """File path and package folders of a URDF source (path, ``package://``, shipped or ERD)."""
+    if str(source).startswith(PACKAGE_PREFIX):
+        return _python_package(str(source))
     path = Path(source)
     if path.suffix.lower() == ".urdf" or path.exists():
         if not path.is_file():
@@ -127,12 +160,39 @@ def _absolute_mesh_paths(robot: yourdfpy.Robot, folder: Path) -> None:
             mesh.filename = str((folder / mesh.filename).resolve())
 
 
-def load_urdf(source: str | Path) -> UrdfSource:
+UNDECLARED_PREFIX = "NS_ERR_UNDEFINED_NAMESPACE"
+"""libxml2's error for a namespace prefix used without a declaration."""
+
+
+def _parse_strictly(path: Path) -> etree._Element:
+    """The file's XML root; refuses broken XML, which yourdfpy would silently recover from.
+
+    An undeclared namespace prefix is not a fault: simulators' URDF extensions
+    (``drake:acceleration``, ...) are often written without declaring it, and URDF ignores them.
+
+    Raises:
+        UrdfError: If the file cannot be read or is not well-formed XML.
+    """
+    try:
+        return etree.parse(str(path), etree.XMLParser(recover=False)).getroot()
+    except etree.XMLSyntaxError as err:
+        if all(entry.type_name == UNDECLARED_PREFIX for entry in err.error_log):
+            return etree.parse(str(path), etree.XMLParser(recover=True)).getroot()
+        raise UrdfError(str(path), f"not well-formed XML ({err})") from err
+    except OSError as err:
+        raise UrdfError(str(path), f"cannot be read ({err})") from err
+
+
+def load_urdf(source: str | Path, repair_inertia: bool = False) -> UrdfSource:
     """Load a URDF file or an example-robot-data robot with yourdfpy.
 
     Args:
-        source: A path to a ``.urdf`` file, a shipped file name (``"pioneer3at"``), or an
-            example-robot-data name (``"ur5"``).
+        source: A path to a ``.urdf`` file, ``package://<python package>/<path>.urdf`` (a file
+            inside an installed Python package), a shipped file name (``"pioneer3at"``), or
+            an example-robot-data name (``"ur5"``).
+        repair_inertia: Repair inertias that break the triangle inequality instead of
+            refusing them (:func:`pbvs_pin.urdf_checks.balance_inertia`); the links changed
+            are in the result's ``repaired_inertias``.
 
     Returns:
         The description with mesh paths made absolute.
@@ -144,12 +204,7 @@ def load_urdf(source: str | Path) -> UrdfSource:
         RobotNotFound: If the name is neither a file nor a known robot.
     """
     path, package_dirs = _resolve(source)
-    try:  # yourdfpy silently recovers from broken XML: parse strictly first
-        tree = etree.parse(str(path), etree.XMLParser(recover=False)).getroot()
-    except etree.XMLSyntaxError as err:
-        raise UrdfError(str(path), f"not well-formed XML ({err})") from err
-    except OSError as err:
-        raise UrdfError(str(path), f"cannot be read ({err})") from err
+    tree = _parse_strictly(path)
     if tree.tag == "robot":
         check_tree(tree, str(path))
     try:
@@ -165,10 +220,11 @@ def load_urdf(source: str | Path) -> UrdfSource:
     if urdf.robot is None or not urdf.robot.links:
         raise UrdfError(str(path), "not a valid URDF (expected <robot> with at least one <link>)")
     robot = copy.deepcopy(urdf.robot)
-    check_physics(robot, str(path))
+    repaired = check_physics(robot, str(path), repair_inertia)
     _absolute_mesh_paths(robot, path.resolve().parent)
+    _resolve_package_uris(robot, package_dirs, path.resolve().parents[:RENAMED_PACKAGE_DEPTH])
     label = str(path) if path.exists() else str(source)
-    return UrdfSource(robot, label, package_dirs, axisless_joints(tree))
+    return UrdfSource(robot, label, package_dirs, axisless_joints(tree), tuple(repaired))
 
 
 def _fixed_chain_poses(robot: yourdfpy.Robot, root: str) -> dict[str, np.ndarray]:
@@ -378,24 +434,83 @@ def mount_arm(platform: UrdfSource, arm: UrdfSource, mount: pin.SE3) -> dict[str
     robot.materials.extend(m for m in arm.robot.materials if m.name not in known)
     robot.name = f"{robot.name}_{arm.robot.name}"
     platform.package_dirs = tuple(dict.fromkeys(platform.package_dirs + arm.package_dirs))
+    platform.repaired_inertias += tuple(names[link] for link in arm.repaired_inertias)
     platform.label = f"{platform.label} + {arm.label}"
     return names
 
 
-def _resolve_package_uris(robot: yourdfpy.Robot, package_dirs: tuple[str, ...]) -> None:
-    """Rewrite ``package://`` mesh URIs that exist under ``package_dirs`` as absolute paths."""
-    prefix = "package://"
+def keep_chain(source: UrdfSource, root: str | None, tip: str) -> None:
+    """Keep only the chain from ``root`` down to ``tip`` (in place).
+
+    Kept: the links on the path from ``root`` to ``tip``, and the links fixed to them through
+    fixed joints only (covers, sensor frames, a rigid hand). Dropped: everything else (a
+    second arm, a pedestal, a head, the movable fingers of a gripper), so it is in neither the
+    model, the plant nor the views. ``root`` becomes the description's root link.
+
+    Args:
+        source: The arm's description.
+        root: First link kept; the description's root link when None.
+        tip: Last link kept.
+
+    Raises:
+        FrameNotFound: If ``root`` or ``tip`` is not a link.
+        ChainError: If ``tip`` does not hang below ``root``.
+    """
+    root = root or source.root_link()
+    for link in (root, tip):
+        source.require_link(link)
+    joint_to = {joint.child: joint for joint in source.robot.joints}
+    path = [tip]
+    while path[-1] != root:
+        if path[-1] not in joint_to:
+            raise ChainError(
+                source.label,
+                f"link {tip!r} does not hang below link {root!r}; expected arm_tip below "
+                f"arm_root (the links above {tip!r}: {path[1:] or 'none'})",
+            )
+        path.append(joint_to[path[-1]].parent)
+    robot = source.robot
+    joints = [joint_to[link] for link in reversed(path[:-1])]
+    kept = set(path)
+    fixed = [joint for joint in robot.joints if joint.type == "fixed" and joint not in joints]
+    grown = True
+    while grown:
+        attached = [j for j in fixed if j.parent in kept and j.child not in kept]
+        kept.update(j.child for j in attached)
+        joints.extend(attached)
+        grown = bool(attached)
+    robot.links = [link for link in robot.links if link.name in kept]
+    robot.joints = [joint for joint in robot.joints if joint in joints]
+    source.repaired_inertias = tuple(link for link in source.repaired_inertias if link in kept)
+
+
+RENAMED_PACKAGE_DEPTH = 3
+"""Folders above a URDF searched for ``package://PKG/<path>``'s ``<path>`` when no ``PKG``
+folder holds it: a wheel that ships ROS packages under other folder names (rtb-data's
+``kuka_lbr_iiwa`` for ``kuka_lbr_iiwa_support``)."""
+
+
+def _resolve_package_uris(
+    robot: yourdfpy.Robot, package_dirs: tuple[str, ...], ancestors: Sequence[Path] = ()
+) -> None:
+    """Rewrite ``package://`` mesh URIs as absolute paths where the file is found.
+
+    ``package://PKG/path`` is looked for as ``<folder>/PKG/path`` for each of
+    ``package_dirs``, then as ``<folder>/path`` for each of ``ancestors`` (a renamed package).
+    """
     for link in robot.links:
         for element in [*link.visuals, *link.collisions]:
             mesh = element.geometry.mesh if element.geometry is not None else None
-            if mesh is None or mesh.filename is None or not mesh.filename.startswith(prefix):
+            uri = "" if mesh is None or mesh.filename is None else mesh.filename
+            if not uri.startswith(PACKAGE_PREFIX):
                 continue
-            relative = mesh.filename[len(prefix) :]
-            for folder in package_dirs:
-                candidate = Path(folder) / relative
-                if candidate.is_file():
-                    mesh.filename = str(candidate.resolve())
-                    break
+            relative = uri[len(PACKAGE_PREFIX) :]
+            inside = relative.partition("/")[2]
+            candidates = [Path(folder) / relative for folder in package_dirs]
+            candidates += [Path(folder) / inside for folder in ancestors]
+            found = next((c for c in candidates if c.is_file()), None)
+            if found is not None:
+                mesh.filename = str(found.resolve())
 
 
 def write_urdf(source: UrdfSource, path: str | Path) -> Path:

@@ -35,6 +35,8 @@ from pbvs_pin.interrupts import held_interrupts, interrupted_in_compiled_code
 from pbvs_pin.outputs import Output, check_output, replace_run_folder
 from pbvs_pin.report import ENGINE_ROBOTS
 from pbvs_pin.validation import positive_number
+from pbvs_pin.zoo import add_arguments as zoo_arguments
+from pbvs_pin.zoo import command as zoo_command
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -478,6 +480,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="adopt a folder with results whose sweep.json is missing or unreadable",
     )
     sweep.set_defaults(handler=_sweep)
+    zoo = commands.add_parser("zoo", help="the four experiments on every robot file of a folder")
+    zoo_arguments(zoo)
+    zoo.set_defaults(handler=zoo_command)
     return parser
 
 

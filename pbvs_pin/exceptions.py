@@ -32,6 +32,10 @@ class UrdfError(PbvsError):
         super().__init__(f"{source}: {problem}")
 
 
+class ChainError(UrdfError):
+    """``arm_tip`` does not hang below ``arm_root`` in the arm's URDF."""
+
+
 class FrameNotFound(PbvsError):
     """A link or frame name does not exist in a robot description."""
 

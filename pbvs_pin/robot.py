@@ -26,6 +26,7 @@ from pbvs_pin.assembly import (
     add_drive_footprint,
     add_fixed_frame,
     find_drive_axle,
+    keep_chain,
     load_urdf,
     mount_arm,
     to_xml,
@@ -132,6 +133,9 @@ class MobileManipulator:
         urdf_xml: The assembled URDF the model was built from (drive footprint and camera frame
             included), for an independent plant such as :mod:`pbvs_pin.mujoco_plant`; None
             when the robot was built from a Pinocchio model directly.
+        repaired_inertias: Links whose inertia was repaired on loading (``repair_inertia``).
+        mounted_links: Links of the arm mounted by :meth:`assemble` (their names in the
+            model); empty when the platform carries its own arm.
     """
 
     def __init__(
@@ -183,6 +187,8 @@ class MobileManipulator:
         self.velocity_limits = np.concatenate([base.velocity_limits(), arm_limits])
         self.home_arm = np.zeros(self.n_arm)
         self.urdf_xml: str | None = None
+        self.repaired_inertias: tuple[str, ...] = ()
+        self.mounted_links: tuple[str, ...] = ()
 
     # ------------------------------------------------------------------ builders
     @classmethod
@@ -192,6 +198,7 @@ class MobileManipulator:
         camera_frame: str = frames.CAMERA_OPTICAL,
         base: str | BaseAdapter = "differential",
         camera: CameraIntrinsics | None = None,
+        repair_inertia: bool = False,
     ) -> MobileManipulator:
         """Load one URDF that holds platform, arm and camera frame.
 
@@ -201,13 +208,16 @@ class MobileManipulator:
             base: ``"differential"`` (drive axle found in the URDF), ``"omnidirectional"``,
                 ``"fixed"``, or a :class:`BaseAdapter`.
             camera: Intrinsics; the paper's camera by default.
+            repair_inertia: Repair inertias that break the triangle inequality
+                (:func:`pbvs_pin.urdf_checks.balance_inertia`) instead of refusing the file;
+                the links changed are in :attr:`repaired_inertias`.
 
         Raises:
             UrdfError: Malformed file, or a platform without a usable drive axle.
             FrameNotFound: If ``camera_frame`` does not exist.
             NoMovableJoint: If no joint moves the camera.
         """
-        source = load_urdf(path)
+        source = load_urdf(path, repair_inertia)
         source.require_link(camera_frame)
         return cls._from_source(source, camera_frame, base, camera)
 
@@ -221,6 +231,9 @@ class MobileManipulator:
         camera_pose: pin.SE3 | npt.ArrayLike = (0, 0, 0, 0, 0, 0),
         camera: CameraIntrinsics | None = None,
         base_kind: str | BaseAdapter = "differential",
+        repair_inertia: bool = False,
+        arm_root: str | None = None,
+        arm_tip: str | None = None,
     ) -> MobileManipulator:
         """Mount an arm on a platform and attach the camera optical frame.
 
@@ -237,19 +250,33 @@ class MobileManipulator:
                 ``camera_link``.
             camera: Intrinsics; the paper's camera by default.
             base_kind: See :meth:`from_urdf`.
+            repair_inertia: See :meth:`from_urdf`; applies to the base and the arm.
+            arm_root: With ``arm_tip``, mount only the arm's chain from this link (placed at
+                ``mount``) down to ``arm_tip``, dropping the rest of the arm's URDF (a second
+                arm, a pedestal); the arm URDF's root link when None.
+            arm_tip: Last link of the chain mounted; ``camera_link`` when None. Neither
+                given: the whole arm URDF is mounted.
 
         Raises:
-            UrdfError: Malformed file, or a platform without a usable drive axle.
-            FrameNotFound: If ``camera_link`` does not exist.
+            UrdfError: Malformed file, a platform without a usable drive axle, or an
+                ``arm_tip`` not below ``arm_root``, or ``arm_root``/``arm_tip`` without an arm.
+            FrameNotFound: If ``camera_link``, ``arm_root`` or ``arm_tip`` does not exist.
             NoMovableJoint: If no joint moves the camera.
         """
         mount_pose = as_se3("mount", mount)
         optical_pose = as_se3("camera_pose", camera_pose)
-        platform = load_urdf(base)
+        platform = load_urdf(base, repair_inertia)
+        chain = arm_root is not None or arm_tip is not None
+        if chain and arm is None:
+            raise UrdfError(platform.label, "arm_root and arm_tip need an arm to cut the chain of")
         if arm is not None:
-            arm_source = load_urdf(arm)
+            arm_source = load_urdf(arm, repair_inertia)
             arm_source.require_link(camera_link)
-            camera_link = mount_arm(platform, arm_source, mount_pose)[camera_link]
+            if chain:
+                keep_chain(arm_source, arm_root, arm_tip or camera_link)
+                arm_source.require_link(camera_link)
+            names = mount_arm(platform, arm_source, mount_pose)
+            camera_link = names[camera_link]
         if camera_link != frames.CAMERA_OPTICAL:
             add_fixed_frame(platform, camera_link, frames.CAMERA_OPTICAL, optical_pose)
         elif optical_pose != pin.SE3.Identity():
@@ -258,7 +285,9 @@ class MobileManipulator:
                 f"camera_link is already the optical frame {frames.CAMERA_OPTICAL!r}: expected "
                 "an identity camera_pose",
             )
-        return cls._from_source(platform, frames.CAMERA_OPTICAL, base_kind, camera)
+        robot = cls._from_source(platform, frames.CAMERA_OPTICAL, base_kind, camera)
+        robot.mounted_links = tuple(names.values()) if arm is not None else ()
+        return robot
 
     @classmethod
     def _from_source(
@@ -279,6 +308,7 @@ class MobileManipulator:
         )
         robot._description = description
         robot.urdf_xml = xml
+        robot.repaired_inertias = source.repaired_inertias
         return robot
 
     def write_urdf(self, path: str | Path) -> Path:

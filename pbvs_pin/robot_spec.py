@@ -10,6 +10,9 @@ file of its own) gives exactly one form:
   platform (:meth:`MobileManipulator.assemble`); ``arm`` and ``mount`` are absent when the
   base carries its arm.
 
+``arm_root`` and ``arm_tip`` (assembly form with an arm) mount only the arm URDF's chain
+between the two links. ``repair_inertia`` (URDF and assembly forms) repairs inertias that
+break the triangle inequality (:func:`pbvs_pin.urdf_checks.balance_inertia`).
 ``home`` (the arm's home posture) applies to every form. The drive parameters
 ``wheel_radius``, ``track`` and ``wheel_speed_limit`` (all three or none, URDF and assembly
 forms) replace the drive axle found in the platform's URDF by a
@@ -24,10 +27,12 @@ from typing import Protocol
 
 import numpy as np
 
+from pbvs_pin.assembly import PACKAGE_PREFIX
 from pbvs_pin.base import DifferentialDrive
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import build_robot
 from pbvs_pin.exceptions import (
+    ChainError,
     DriveAxleNotFound,
     FrameNotFound,
     HomeNotFound,
@@ -38,6 +43,7 @@ from pbvs_pin.exceptions import (
     UrdfError,
 )
 from pbvs_pin.home import compute_home
+from pbvs_pin.placement import warn_placement
 from pbvs_pin.robot import MobileManipulator
 
 
@@ -59,6 +65,9 @@ class RobotTable(Protocol):
     wheel_radius: float | None
     track: float | None
     wheel_speed_limit: float | None
+    arm_root: str
+    arm_tip: str
+    repair_inertia: bool
     home: tuple[float, ...] | None
 
     @property
@@ -75,6 +84,9 @@ ROBOT_FORMS: dict[str, tuple[str, ...]] = {
 
 DRIVE_KEYS = ("wheel_radius", "track", "wheel_speed_limit")
 """The explicit differential-drive parameters (all or none)."""
+
+CHAIN_KEYS = ("arm_root", "arm_tip")
+"""The keys that cut a chain out of the arm's URDF (assembly form with an arm only)."""
 
 REQUIRED: dict[str, tuple[tuple[str, tuple[str, ...]], ...]] = {
     "name": (),
@@ -99,10 +111,12 @@ HINTS = {
 
 
 def is_path(name: str, value: str) -> bool:
-    """Whether a ``[robot]`` value is a file path: urdf; name, base or arm ending in .urdf."""
-    return bool(value) and (
-        name == "urdf" or (name in ("name", "base", "arm") and value.lower().endswith(".urdf"))
-    )
+    """Whether a ``[robot]`` value is a file path: urdf; name, base or arm ending in .urdf.
+
+    A ``package://`` source (a URDF inside an installed Python package) is not a path.
+    """
+    urdf_name = name in ("name", "base", "arm") and value.lower().endswith(".urdf")
+    return bool(value) and not value.startswith(PACKAGE_PREFIX) and (name == "urdf" or urdf_name)
 
 
 def drive_of(spec: RobotTable) -> DifferentialDrive | str:
@@ -125,6 +139,10 @@ def build_robot_from(
         spec: The validated table.
         camera: Intrinsics; the paper's camera by default.
 
+    Warns:
+        PbvsWarning: If links are below the floor or arm links inside the platform at home
+            (:func:`pbvs_pin.placement.warn_placement`).
+
     Raises:
         ScenarioError: Naming ``spec.source`` and the dotted field: an unknown name, a
             missing or malformed URDF, a missing frame, a platform whose drive cannot be
@@ -145,6 +163,8 @@ def build_robot_from(
             robot.home_arm = compute_home(robot)
         except HomeNotFound as err:
             raise ScenarioError(spec.source, "robot.home", str(err)) from err
+    if spec.form != "name":
+        warn_placement(robot, spec.source or robot.source)
     return robot
 
 
@@ -153,7 +173,9 @@ def _build(spec: RobotTable, camera: CameraIntrinsics | None) -> MobileManipulat
     if spec.form == "name":
         return build_robot(spec.name, camera)
     if spec.form == "urdf":
-        return MobileManipulator.from_urdf(spec.urdf, spec.camera_frame, drive_of(spec), camera)
+        return MobileManipulator.from_urdf(
+            spec.urdf, spec.camera_frame, drive_of(spec), camera, spec.repair_inertia
+        )
     return MobileManipulator.assemble(
         spec.base,
         spec.arm or None,
@@ -162,6 +184,9 @@ def _build(spec: RobotTable, camera: CameraIntrinsics | None) -> MobileManipulat
         spec.camera_pose,
         camera=camera,
         base_kind=drive_of(spec),
+        repair_inertia=spec.repair_inertia,
+        arm_root=spec.arm_root or None,
+        arm_tip=spec.arm_tip or None,
     )
 
 
@@ -172,6 +197,11 @@ def _field_at_fault(spec: RobotTable, err: PbvsError) -> str:
         return "name"
     if isinstance(err, DriveAxleNotFound):
         return "urdf" if form == "urdf" else "base"
+    chain = {getattr(spec, key): key for key in CHAIN_KEYS if getattr(spec, key)}
+    if isinstance(err, FrameNotFound) and err.name in chain:
+        return chain[err.name]
+    if isinstance(err, ChainError):
+        return "arm_tip" if spec.arm_tip else "arm_root"
     if isinstance(err, FrameNotFound | NoMovableJoint):
         return "camera_frame" if form == "urdf" else "camera_link"
     if form == "urdf":

@@ -55,7 +55,7 @@ import numpy.typing as npt
 from numba import njit
 
 from pbvs_pin.dynamics import DynamicTerms, actuated_terms, rigid_body_terms
-from pbvs_pin.exceptions import GainError
+from pbvs_pin.exceptions import GainError, UrdfError
 from pbvs_pin.validation import as_number, as_numbers
 
 if TYPE_CHECKING:
@@ -87,6 +87,26 @@ A joint's band is widened to at least ``F h / M_v,ii`` (the speed one plant step
 friction gives it), so that the semi-implicit step cannot carry it across the band: a light
 wrist joint with URDF friction otherwise chatters (TIAGo Pro's ``arm_right_7_joint`` jumped
 to 0.21 rad/s under a zero command)."""
+
+
+def _check_joints_move_mass(robot: MobileManipulator) -> None:
+    """UrdfError naming the arm joints below which every link is massless."""
+    model = robot.model
+    massless = [
+        name
+        for name in robot.arm_joint_names
+        if all(
+            model.inertias[j].mass == 0.0 and not np.any(model.inertias[j].inertia)
+            for j in model.subtrees[model.getJointId(name)]
+        )
+    ]
+    if massless:
+        raise UrdfError(
+            robot.source,
+            f"arm joints {massless} move no mass (the links below them have no <inertial>): "
+            "the simulated servos and the dynamic compensation need the links' masses; "
+            "expected <inertial> with <mass> and <inertia> on each link",
+        )
 
 
 @njit(cache=True)
@@ -179,10 +199,15 @@ class ServoModel:
             platform: Time constants of the platform's velocities [s].
             revolute: Time constant of a revolute (or continuous) arm joint [s].
             prismatic: Time constant of a prismatic arm joint [s].
+
+        Raises:
+            UrdfError: If an arm joint moves no mass (a URDF without ``<inertial>``): its
+                servo's stiffness, scheduled on the mass matrix, would be zero.
         """
         model = robot.model
         platform = tuple(as_numbers("platform", platform).ravel())
         revolute, prismatic = as_number("revolute", revolute), as_number("prismatic", prismatic)
+        _check_joints_move_mass(robot)
         if len(platform) != robot.n_base:
             platform = (platform[0],) * robot.n_base
         taus, damping, friction = [*platform], [0.0] * robot.n_base, [0.0] * robot.n_base

@@ -14,6 +14,9 @@ and what was expected:
   which every rigid body does; the last two within :data:`INERTIA_TOLERANCE` of the trace
   plus :data:`INERTIA_ABSOLUTE_TOLERANCE` (published URDFs hold tiny links a few 1e-8 kg m^2
   off, e.g. TIAGo's antennas, which do not matter).
+  A URDF whose inertias break the triangle inequality can be loaded with ``repair_inertia``
+  (the ``[robot]`` key of that name): each such inertia is replaced by
+  :func:`balance_inertia`, as MuJoCo's ``balanceinertia`` compiler option does.
 - **Joints**: finite origins; ``lower <= upper``; a velocity limit that, when given for a
   movable joint, is positive; mesh files that exist (``package://`` URIs are resolved later).
 """
@@ -23,6 +26,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import yourdfpy
 from lxml import etree
 
@@ -106,19 +110,54 @@ def axisless_joints(root: etree._Element) -> frozenset[str]:
     return frozenset(j.get("name") for j in root.findall("joint") if j.find("axis") is None)
 
 
-def check_physics(robot: yourdfpy.Robot, label: str) -> None:
+REPAIR_KEY = "repair_inertia"
+"""The ``[robot]`` key (and API argument) that repairs inertias breaking the triangle rule."""
+
+
+def balance_inertia(inertia: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    r"""An inertia with every principal moment set to their mean, as MuJoCo's ``balanceinertia``.
+
+    MuJoCo's compiler option ``balanceinertia`` sets the three principal moments to their
+    average when they break the triangle inequality. The average keeps the trace (the sum of
+    the moments, hence the link's polar moment of mass), and three equal moments satisfy the
+    inequality. The result is isotropic, so it is the same in every frame:
+
+    .. math::
+
+        I' = \frac{\operatorname{tr} I}{3} \, \mathbb{1}_3
+
+    Args:
+        inertia: Rotational inertia about the centre of mass [kg m^2]. Shape (3, 3).
+
+    Returns:
+        The repaired inertia [kg m^2]. Shape (3, 3).
+    """
+    matrix = np.asarray(inertia, dtype=float)
+    return np.trace(matrix) / 3.0 * np.eye(3)
+
+
+def check_physics(robot: yourdfpy.Robot, label: str, repair_inertia: bool = False) -> list[str]:
     """Refuse masses, inertias, limits and origins no robot has (see the module doc).
 
     Args:
-        robot: The yourdfpy description.
+        robot: The yourdfpy description; with ``repair_inertia``, edited in place.
         label: File the URDF came from, for messages.
+        repair_inertia: Replace each inertia that breaks the triangle inequality by
+            :func:`balance_inertia` instead of refusing it.
+
+    Returns:
+        The names of the links whose inertia was repaired (empty without ``repair_inertia``).
 
     Raises:
         UrdfError: Naming the link or joint, the value and what was expected.
     """
+    repaired = []
     for link in robot.links:
-        if link.inertial is not None:
-            _check_inertial(link.name, link.inertial, label)
+        if link.inertial is not None and _check_inertial(
+            link.name, link.inertial, label, repair_inertia
+        ):
+            link.inertial.inertia = balance_inertia(link.inertial.inertia)
+            repaired.append(link.name)
     for joint in robot.joints:
         where = f"joint {joint.name!r}"
         if joint.origin is not None and not np.all(np.isfinite(joint.origin)):
@@ -141,10 +180,13 @@ def check_physics(robot: yourdfpy.Robot, label: str) -> None:
                 f"{where}: <limit velocity={limit.velocity:g}>: expected a positive speed limit "
                 "[rad/s or m/s]",
             )
+    return repaired
 
 
-def _check_inertial(link: str, inertial: yourdfpy.Inertial, label: str) -> None:
-    """Mass and inertia of one link."""
+def _check_inertial(
+    link: str, inertial: yourdfpy.Inertial, label: str, repair_inertia: bool
+) -> bool:
+    """Mass and inertia of one link; whether its inertia is to be repaired."""
     where = f"link {link!r}"
     mass = inertial.mass
     if mass is not None and not (np.isfinite(mass) and 0.0 <= mass <= MAX_LINK_MASS):
@@ -152,7 +194,7 @@ def _check_inertial(link: str, inertial: yourdfpy.Inertial, label: str) -> None:
             label, f"{where}: <mass value={mass:g}>: expected 0 <= mass <= {MAX_LINK_MASS:g} kg"
         )
     if inertial.inertia is None:
-        return
+        return False
     inertia = np.asarray(inertial.inertia, dtype=float)
     if not np.all(np.isfinite(inertia)):
         raise UrdfError(label, f"{where}: <inertia> is not finite; expected numbers")
@@ -165,12 +207,18 @@ def _check_inertial(link: str, inertial: yourdfpy.Inertial, label: str) -> None:
             f"{where}: <inertia> (diagonal {diagonal}) has a negative principal moment "
             f"{moments[0]:.3g} kg m^2; expected a positive (semi)definite inertia",
         )
-    if moments[0] + moments[1] < moments[2] - tolerance:
-        raise UrdfError(
-            label,
-            f"{where}: <inertia> principal moments {np.round(moments, 9).tolist()} kg m^2 break "
-            "the triangle inequality I1 + I2 >= I3 that every rigid body satisfies",
-        )
+    if moments[0] + moments[1] >= moments[2] - tolerance:
+        return False
+    if repair_inertia:
+        return True
+    raise UrdfError(
+        label,
+        f"{where}: <inertia> principal moments {np.round(moments, 9).tolist()} kg m^2 break "
+        "the triangle inequality I1 + I2 >= I3 that every rigid body satisfies; fix the URDF, "
+        f"or set {REPAIR_KEY} = true in [robot] ({REPAIR_KEY}=True in Python) to replace each "
+        "such inertia by its mean principal moment times the identity, as MuJoCo's "
+        "balanceinertia does",
+    )
 
 
 def check_meshes(robot: yourdfpy.Robot, label: str) -> None:

@@ -8,14 +8,15 @@ never from the servo code under test.
 
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ET
 
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import DATA_DIR, random_configuration
+from conftest import DATA_DIR, URDF_DIR, random_configuration
 
-from pbvs_pin.exceptions import GainError
+from pbvs_pin.exceptions import GainError, UrdfError
 from pbvs_pin.plant import Plant
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.servo import (
@@ -310,3 +311,14 @@ def test_packed_servo_step_is_servo_step_with_its_constants_packed(damped):
         np.testing.assert_array_equal(outputs[0], outputs[2])
         np.testing.assert_array_equal(outputs[1], outputs[3])
     assert servo.stop_index.size > 0 and np.any(servo.friction > 0)
+
+
+def test_an_arm_that_moves_no_mass_is_refused(tmp_path):
+    """A URDF without <inertial> (rtb-data's arms) would give its servos zero stiffness."""
+    text = (URDF_DIR / "pioneer_cyton.urdf").read_text()
+    path = tmp_path / "massless.urdf"
+    path.write_text(re.sub(r"<inertial>.*?</inertial>", "", text, flags=re.DOTALL))
+    robot = MobileManipulator.from_urdf(str(path))  # kinematics need no mass
+    with pytest.raises(UrdfError, match=r"move no mass") as err:
+        ServoModel.from_robot(robot)
+    assert all(name in str(err.value) for name in robot.arm_joint_names)

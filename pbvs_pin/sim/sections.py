@@ -20,7 +20,15 @@ from pbvs_pin.control.upright import LOOP_GAIN_MARGIN, RESTORING_RATE
 from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.robot_spec import DRIVE_KEYS, HINTS, REQUIRED, ROBOT_FORMS, build_robot_from, is_path
+from pbvs_pin.robot_spec import (
+    CHAIN_KEYS,
+    DRIVE_KEYS,
+    HINTS,
+    REQUIRED,
+    ROBOT_FORMS,
+    build_robot_from,
+    is_path,
+)
 from pbvs_pin.sim.keys import (
     NON_NEGATIVE,
     POSITIVE,
@@ -72,6 +80,15 @@ class RobotSection(Section):
         None, "Largest wheel speed [rad/s]; from the platform URDF if absent.", sign=POSITIVE,
         optional=float,
     )  # fmt: skip
+    arm_root: str = key("", "First link of the arm URDF mounted (at mount); its root if absent.")
+    arm_tip: str = key(
+        "", "Last link of the arm URDF mounted; with arm_root or alone, only the chain between "
+        "them is kept (camera_link if absent); the whole arm URDF if both are absent.",
+    )  # fmt: skip
+    repair_inertia: bool = key(
+        False, "Replace inertias breaking I1 + I2 >= I3 by their mean principal moment "
+        "(MuJoCo's balanceinertia); the links changed go to the run's meta.",
+    )  # fmt: skip
     home: tuple[float, ...] | None = key(
         None, "Arm home posture [rad or m], one per arm joint; the robot's own if absent."
     )
@@ -112,7 +129,12 @@ class RobotSection(Section):
         for name, needed in REQUIRED[given[0]]:
             if not self._has(name) and all(self._has(n) for n in needed):
                 raise GainError(f"missing; add {name} = {HINTS[name]}", name)
+        for name in CHAIN_KEYS:
+            if self._has(name) and not self._has("arm"):
+                raise GainError("needs an arm: the chain is cut out of the arm's URDF", name)
         drive = [self._has(name) for name in DRIVE_KEYS]
+        if given[0] == "name" and self.repair_inertia:
+            raise GainError("a shipped robot's inertias are valid: remove it", "repair_inertia")
         if given[0] == "name" and any(drive):
             name = DRIVE_KEYS[drive.index(True)]
             raise GainError("a shipped robot's drive is known: remove the drive keys", name)

@@ -121,14 +121,20 @@ class Setup:
         return self.control.tracker.estimator
 
     def robot_meta(self) -> dict[str, Any]:
-        """The robot in a log's meta: ``robot`` (a label) and ``robot_table``.
+        """The robot in a log's meta: ``robot`` (a label), ``robot_table``, ``inertia_repaired``.
 
         ``robot_table`` is the ``[robot]`` table the robot was built from (None for a robot
-        given from Python, whose label is its source).
+        given from Python, whose label is its source); ``inertia_repaired`` lists the links
+        whose inertia ``repair_inertia`` changed.
         """
+        repaired = {"inertia_repaired": list(self.robot.repaired_inertias)}
         if self.robot_given:
-            return {"robot": self.robot.source, "robot_table": None}
-        return {"robot": self.scenario.robot.label, "robot_table": self.scenario.robot.to_toml()}
+            return {"robot": self.robot.source, "robot_table": None, **repaired}
+        return {
+            "robot": self.scenario.robot.label,
+            "robot_table": self.scenario.robot.to_toml(),
+            **repaired,
+        }
 
 
 def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:

@@ -1,0 +1,324 @@
+"""The robot zoo: the paper's four experiments on every robot file of a folder, on both plants.
+
+Each robot is a TOML file with a ``[robot]`` table, written as a user would write it (the
+repository's ``robots/`` folder holds robots from several PyPI packages of robot
+descriptions). :func:`run_zoo` runs each robot through Experiments 1-4 on the Pinocchio and
+the MuJoCo plants with the shipped gains, in a process pool, and keeps each run's summary in
+``<out>/<robot>/<experiment>_<engine>.json`` (a summary already there is not run again).
+:func:`zoo_table` writes them as the reStructuredText page ``docs/zoo.rst``: per robot its
+package, degrees of freedom and joint types, and per experiment and plant the max error over
+the last 5 s, the target-lost samples, the largest excursion past a joint limit, the
+oscillation RMS, the share of samples where the loop-gain net cut the gains, and whether the
+run meets the paper's claim by the report's rules (:data:`pbvs_pin.report.CLAIMS`).
+
+Run it with ``pbvs-pin zoo robots --out zoo_results --page docs/zoo.rst`` (or ``python -m
+pbvs_pin.zoo``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+import tomllib
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from importlib.metadata import packages_distributions
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pbvs_pin.assembly import PACKAGE_PREFIX
+from pbvs_pin.exceptions import PbvsError
+from pbvs_pin.report import claim_met
+from pbvs_pin.robot import MobileManipulator
+
+EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
+"""The paper's experiments, as shipped scenarios."""
+
+ENGINES = ("pinocchio", "mujoco")
+"""The plants every robot runs on."""
+
+SHIPPED_PACKAGE = "pbvs_pin"
+"""Package named for a robot the project ships its URDF of."""
+
+
+@dataclass(frozen=True)
+class ZooRobot:
+    """One robot file of the zoo.
+
+    Attributes:
+        name: The file's stem.
+        path: The TOML file.
+        table: Its ``[robot]`` table.
+    """
+
+    name: str
+    path: Path
+    table: dict[str, Any]
+
+    @property
+    def package(self) -> str:
+        """The PyPI package that ships the robot's URDFs (each distinct one, joined by +)."""
+        sources = [self.table.get(key, "") for key in ("urdf", "base", "arm", "name")]
+        return " + ".join(dict.fromkeys(_package_of(s) for s in sources if s))
+
+
+def _package_of(source: str) -> str:
+    """The distribution a ``[robot]`` URDF source (or shipped robot name) comes from."""
+    from pbvs_pin.catalogue import RECIPES, REFERENCE_ROBOT
+
+    if source.startswith(PACKAGE_PREFIX):
+        module = source[len(PACKAGE_PREFIX) :].split("/", 1)[0]
+        return packages_distributions().get(module, [module])[0]
+    if source == REFERENCE_ROBOT:
+        return SHIPPED_PACKAGE
+    if source in RECIPES:
+        return _file_package(RECIPES[source].arm or RECIPES[source].base)
+    return _file_package(source)
+
+
+def _file_package(source: str) -> str:
+    """The distribution of a URDF name: shipped, a file of the user's, or example-robot-data."""
+    from pbvs_pin.shipped import shipped_urdf
+
+    if shipped_urdf(source) is not None:
+        return SHIPPED_PACKAGE
+    return "file" if source.lower().endswith(".urdf") else "example-robot-data"
+
+
+def load_zoo(folder: str | Path) -> list[ZooRobot]:
+    """Every ``*.toml`` robot file of ``folder``, sorted by name.
+
+    Raises:
+        ScenarioError: Naming a file without a ``[robot]`` table or that is not valid TOML.
+    """
+    from pbvs_pin.exceptions import ScenarioError
+
+    robots = []
+    for path in sorted(Path(folder).glob("*.toml")):
+        try:
+            table = tomllib.loads(path.read_text())
+        except tomllib.TOMLDecodeError as err:
+            raise ScenarioError(str(path), "", f"not valid TOML ({err})") from err
+        if "robot" not in table:
+            raise ScenarioError(str(path), "robot", "missing; a robot file has a [robot] table")
+        robots.append(ZooRobot(path.stem, path, table["robot"]))
+    return robots
+
+
+def joint_types(robot: MobileManipulator) -> str:
+    """The arm's joints by type, e.g. ``"5 P + 1 R"`` (prismatic, revolute, continuous)."""
+    kinds = []
+    for name in robot.arm_joint_names:
+        joint = robot.model.joints[robot.model.getJointId(name)]
+        prismatic = joint.shortname().startswith("JointModelP")
+        kinds.append("P" if prismatic else "C" if joint.nq == 2 else "R")
+    counts = {kind: kinds.count(kind) for kind in ("P", "R", "C") if kind in kinds}
+    return " + ".join(f"{count} {kind}" for kind, count in counts.items())
+
+
+def run_robot(
+    robot_file: ZooRobot, out: Path, experiments: tuple[str, ...], engines: tuple[str, ...],
+    duration: float | None,
+) -> list[dict[str, Any]]:  # fmt: skip
+    """Run one robot through ``experiments`` on ``engines``; each run's row, saved as JSON.
+
+    A robot that cannot be built gives one row per run with its ``error``; so does a run
+    that raises (a project error's message, or the exception's type and message).
+    """
+    from pbvs_pin.sim.loop import simulate
+    from pbvs_pin.sim.metrics import summarize
+    from pbvs_pin.sim.scenario import load_scenario
+    from pbvs_pin.sim.sections import RobotSection
+
+    folder = out / robot_file.name
+    folder.mkdir(parents=True, exist_ok=True)
+    values = {f"robot.{key}": value for key, value in robot_file.table.items()}
+    if "name" not in robot_file.table:
+        values["robot.name"] = ""
+    rows, robot, info = [], None, {}
+    for experiment in experiments:
+        for engine in engines:
+            path = folder / f"{experiment}_{engine}.json"
+            if path.exists():
+                rows.append(json.loads(path.read_text()))
+                continue
+            row = {"robot": robot_file.name, "package": robot_file.package,
+                   "experiment": experiment, "engine": engine}  # fmt: skip
+            started = time.perf_counter()
+            try:
+                scenario = load_scenario(experiment).with_values(
+                    **values, **{"plant.engine": engine},
+                    **({} if duration is None else {"duration": duration}),
+                )  # fmt: skip
+                if robot is None:  # built from its file: messages name it, paths are its own
+                    spec = RobotSection.from_toml(robot_file.table, str(robot_file.path))
+                    robot = spec.build(scenario.camera.intrinsics())
+                    info = {"dof": robot.n, "base_dof": robot.n_base,
+                            "joint_types": joint_types(robot)}  # fmt: skip
+                log = simulate(scenario, robot=robot)
+                row |= info | _figures(log, summarize(log))
+            except Exception as err:  # a failing run is a row of the table; the zoo goes on
+                message = str(err) if isinstance(err, PbvsError) else f"{type(err).__name__}: {err}"
+                row |= info | {"error": message}
+            row["wall_time_s"] = time.perf_counter() - started
+            path.write_text(json.dumps(row, indent=1))
+            rows.append(row)
+    return rows
+
+
+def _figures(log: Any, summary: dict[str, Any]) -> dict[str, Any]:
+    """A run's figures for the table (pixels, metres or radians, fractions)."""
+    summary = summary | {"scenario": log.meta["scenario"]}
+    return {
+        "max_error_last_5s_px": summary["max_abs_error_final_window_px"],
+        "target_lost_samples": summary["target_lost_samples"],
+        "joint_limit_violation": summary["joint_limit_violation"] or 0.0,
+        "oscillation_rms_px": summary["oscillation_rms_px"],
+        "net_share": float(np.mean(log["gain_limited"])),
+        "claim_met": claim_met(summary),
+        "min_clearance_m": summary["min_clearance_m"],
+        "duration_s": summary["duration_s"],
+    }
+
+
+def run_zoo(
+    folder: str | Path, out: str | Path, experiments: tuple[str, ...] = EXPERIMENTS,
+    engines: tuple[str, ...] = ENGINES, duration: float | None = None, workers: int = 1,
+) -> list[dict[str, Any]]:  # fmt: skip
+    """Run every robot of ``folder`` (one task per robot) in a pool of ``workers`` processes.
+
+    Args:
+        folder: Folder of robot TOML files.
+        out: Folder of the per-run JSON rows (created; existing rows are kept, not rerun).
+        experiments: Shipped scenario names.
+        engines: Plant engines.
+        duration: Cut every run to this length [s]; each experiment's own when None.
+        workers: Processes; 1 on a shared machine.
+
+    Returns:
+        Every run's row, by robot then experiment then engine.
+    """
+    out = Path(out)
+    robots = load_zoo(folder)
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        tasks = [
+            pool.submit(run_robot, robot, out, tuple(experiments), tuple(engines), duration)
+            for robot in robots
+        ]
+        return [row for task in tasks for row in task.result()]
+
+
+def _cell(row: dict[str, Any]) -> list[str]:
+    """One run's five figures and claim, as table cells."""
+    if "error" in row:
+        return ["error", "", "", "", "", ""]
+    met = row["claim_met"]
+    return [
+        f"{row['max_error_last_5s_px']:.2f}",
+        str(row["target_lost_samples"]),
+        f"{row['joint_limit_violation']:.3g}",
+        f"{row['oscillation_rms_px']:.2f}",
+        f"{row['net_share']:.2f}",
+        "-" if met is None else ("yes" if met else "**no**"),
+    ]
+
+
+FIGURES = ("max err last 5 s [px]", "lost", "past limits [rad or m]", "osc. [px]", "net share",
+           "claim met")  # fmt: skip
+"""Column heads of one run's figures."""
+
+
+def zoo_table(rows: list[dict[str, Any]], engines: tuple[str, ...] = ENGINES) -> str:
+    """The zoo's rows as an RST list-table: one line per robot and experiment."""
+    heads = ["robot", "package", "dof", "arm joints", "experiment"] + [
+        f"{engine}: {figure}" for engine in engines for figure in FIGURES
+    ]
+    by_run = {(r["robot"], r["experiment"], r["engine"]): r for r in rows}
+    lines = [".. list-table::", "   :header-rows: 1", ""]
+    lines += _rst_row(heads)
+    for robot, experiment in dict.fromkeys((r["robot"], r["experiment"]) for r in rows):
+        first = next(r for r in rows if r["robot"] == robot)
+        cells = [robot, first["package"], str(first.get("dof", "")), first.get("joint_types", ""),
+                 experiment]  # fmt: skip
+        for engine in engines:
+            row = by_run.get((robot, experiment, engine))
+            cells += _cell(row) if row is not None else ["not run", "", "", "", "", ""]
+        lines += _rst_row(cells)
+    return "\n".join(lines) + "\n"
+
+
+def _rst_row(cells: list[str]) -> list[str]:
+    """A list-table row."""
+    return [f"   * - {cells[0]}"] + [f"     - {cell}" for cell in cells[1:]]
+
+
+def errors(rows: list[dict[str, Any]]) -> str:
+    """The runs that raised, one bullet per robot, plant and error, naming the experiments."""
+    failed: dict[tuple[str, str, str], list[str]] = {}
+    for row in rows:
+        if "error" in row:
+            key = (row["robot"], row["engine"], row["error"])
+            failed.setdefault(key, []).append(row["experiment"])
+    return "".join(
+        f"- ``{robot}`` on {engine} ({', '.join(experiments)}): {error}\n"
+        for (robot, engine, error), experiments in failed.items()
+    )
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The zoo's command-line arguments (``python -m pbvs_pin.zoo``, or a CLI subcommand)."""
+    parser.add_argument("folder", help="folder of robot TOML files")
+    parser.add_argument("--out", required=True, help="folder of the per-run results")
+    parser.add_argument("--page", help="write the table into this RST page's generated block")
+    parser.add_argument("--duration", type=float, help="cut every run to this length [s]")
+    parser.add_argument("--engines", default=",".join(ENGINES))
+    parser.add_argument("--experiments", default=",".join(EXPERIMENTS))
+    parser.add_argument("--workers", type=int, default=1)
+
+
+def command(args: argparse.Namespace) -> None:
+    """Run the zoo as ``args`` say; print the wall time, write or print the table."""
+    engines = tuple(args.engines.split(","))
+    started = time.perf_counter()
+    rows = run_zoo(args.folder, args.out, tuple(args.experiments.split(",")), engines,
+                   args.duration, args.workers)  # fmt: skip
+    print(f"{len(rows)} runs in {time.perf_counter() - started:.0f} s")
+    table = zoo_table(rows, engines) + ("\n" + errors(rows) if errors(rows) else "")
+    if args.page:
+        write_block(Path(args.page), table)
+    else:
+        print(table)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m pbvs_pin.zoo FOLDER --out RESULTS [--page docs/zoo.rst]``."""
+    parser = argparse.ArgumentParser(prog="python -m pbvs_pin.zoo", description=__doc__)
+    add_arguments(parser)
+    command(parser.parse_args(argv))
+
+
+PAGE_BEGIN = ".. zoo table: generated by python -m pbvs_pin.zoo"
+PAGE_END = ".. end of the generated zoo table"
+
+
+def write_block(page: Path, table: str) -> None:
+    """Replace the text between :data:`PAGE_BEGIN` and :data:`PAGE_END` of ``page``.
+
+    Raises:
+        OutputError: If the page lacks the markers.
+    """
+    from pbvs_pin.exceptions import OutputError
+
+    text = page.read_text()
+    if PAGE_BEGIN not in text or PAGE_END not in text:
+        raise OutputError(str(page), f"expected the lines {PAGE_BEGIN!r} and {PAGE_END!r}")
+    head, rest = text.split(PAGE_BEGIN, 1)
+    tail = rest.split(PAGE_END, 1)[1]
+    page.write_text(f"{head}{PAGE_BEGIN}\n\n{table}\n{PAGE_END}{tail}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,108 @@
+"""The robot zoo (issue 22, item 1): its robot files, and a short run of the sweep.
+
+The short run is Experiment 1 cut to 1 s on the Pinocchio plant for two robots of the zoo
+(the reference robot and Hello Robot's Stretch, five prismatic joints) and a robot file whose
+camera link does not exist. Its figures are checked against the same run done here with
+:func:`simulate` and measured from the log.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pbvs_pin.exceptions import OutputError
+from pbvs_pin.sim.loop import simulate
+from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.sim.sections import RobotSection
+from pbvs_pin.zoo import (
+    PAGE_BEGIN,
+    PAGE_END,
+    errors,
+    load_zoo,
+    main,
+    run_zoo,
+    write_block,
+    zoo_table,
+)
+
+ROBOTS = Path(__file__).resolve().parents[1] / "robots"
+DURATION = 1.0  # [s]
+BROKEN = """[robot]
+base = "pioneer3at"
+arm = "ur5"
+mount = [0.10, 0.0, 0.27, 0.0, 0.0, 0.0]
+camera_link = "no_such_link"
+camera_pose = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+"""
+
+
+def test_the_zoo_has_twelve_robots_from_three_packages():
+    zoo = load_zoo(ROBOTS)
+    for robot in zoo:
+        RobotSection.from_toml(robot.table, str(robot.path))  # every file is a valid table
+    packages = {robot.name: robot.package for robot in zoo}
+    assert len(zoo) >= 12
+    others = [name for name, package in packages.items() if "example-robot-data" not in package]
+    assert len(others) >= 6, packages
+    distributions = {part for package in packages.values() for part in package.split(" + ")}
+    assert len(distributions - {"pbvs_pin"}) >= 3, distributions
+    assert packages["stretch_re1"] == "hello-robot-stretch-urdf"
+    assert packages["pioneer_iiwa14"] == "pbvs_pin + rtb-data"
+
+
+@pytest.fixture(scope="module")
+def short_zoo(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("robots")
+    for name in ("pioneer_cyton", "stretch_re1"):
+        shutil.copy(ROBOTS / f"{name}.toml", folder)
+    (folder / "broken.toml").write_text(BROKEN)
+    out = folder / "results"
+    rows = run_zoo(folder, out, ("experiment1",), ("pinocchio",), duration=DURATION)
+    return folder, out, rows
+
+
+def test_short_zoo_rows_are_the_runs_measured_from_their_logs(short_zoo):
+    folder, _, rows = short_zoo
+    by_robot = {row["robot"]: row for row in rows}
+    assert sorted(by_robot) == ["broken", "pioneer_cyton", "stretch_re1"]
+    stretch = by_robot["stretch_re1"]
+    assert (stretch["dof"], stretch["joint_types"]) == (8, "5 P + 1 R")  # u, omega; lift, 4 arm, yaw
+    robot = RobotSection.from_toml(load_zoo(folder)[2].table, "stretch_re1.toml").build()
+    log = simulate(load_scenario("experiment1").with_values(duration=DURATION), robot=robot)
+    error = np.abs(log["xi_true"] - log["xi_d"])
+    assert stretch["max_error_last_5s_px"] == pytest.approx(error.max(), rel=1e-9)
+    assert stretch["target_lost_samples"] == int(np.sum(log["target_lost"]))
+    assert stretch["net_share"] == pytest.approx(np.mean(log["gain_limited"]))
+    assert "no_such_link" in by_robot["broken"]["error"]
+
+
+def test_short_zoo_table_and_errors(short_zoo, tmp_path):
+    _, out, rows = short_zoo
+    table = zoo_table(rows, ("pinocchio",))
+    lines = [line for line in table.splitlines() if line.startswith("   * - ")]
+    assert len(lines) == 1 + 3  # header, one robot and experiment per line
+    assert "hello-robot-stretch-urdf" in table and "5 P + 1 R" in table
+    assert "broken" in errors(rows) and "robot.camera_link" in errors(rows)
+    assert (out / "stretch_re1" / "experiment1_pinocchio.json").is_file()
+    page = tmp_path / "zoo.rst"
+    page.write_text(f"Zoo\n===\n\n{PAGE_BEGIN}\nold\n{PAGE_END}\n\nafter\n")
+    write_block(page, table)
+    text = page.read_text()
+    assert "old" not in text and "hello-robot-stretch-urdf" in text and text.endswith("after\n")
+    page.write_text("no markers\n")
+    with pytest.raises(OutputError, match="zoo table"):
+        write_block(page, table)
+
+
+def test_command_line_reuses_the_runs_and_writes_the_page(short_zoo, tmp_path, capsys):
+    folder, out, _ = short_zoo
+    page = tmp_path / "zoo.rst"
+    page.write_text(f"{PAGE_BEGIN}\n{PAGE_END}\n")
+    main([str(folder), "--out", str(out), "--page", str(page), "--engines", "pinocchio",
+          "--experiments", "experiment1", "--duration", str(DURATION)])  # fmt: skip
+    assert "3 runs in" in capsys.readouterr().out
+    assert "stretch_re1" in page.read_text() and "no_such_link" in page.read_text()
