@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from pbvs_pin.camera import project_points
 from pbvs_pin.estimation import VelocityEstimator
 from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.robot import MobileManipulator
@@ -139,7 +140,9 @@ class TargetTracker:
         world = self._world + velocity * (t - self.capture_time)
         if placement is None:
             placement = model.camera_placement(q)
-        image, depths = model.camera.project_world(placement, world)
+        image, depths = project_points(  # eq. (2); the hot path's inputs are valid already
+            world, placement.translation, placement.rotation, model.camera.focal_px, 0.0
+        )
         return ImageMeasurement(image, depths)
 
     def forget(self) -> None:
