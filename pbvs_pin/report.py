@@ -104,7 +104,7 @@ CLAIMS = {
         lambda s: _sound(s) and s["max_abs_error_final_window_px"] < 0.5,
     ),
 }
-"""The paper's claim for each experiment (§5) and its rule (DESIGN.md §4)."""
+"""The paper's claim for each experiment (§5) and its rule (the design notes, §4)."""
 
 FLAG_RULES = (
     "Flags: *lost N from t s*: the target was out of view for N log samples, first at t; "
@@ -317,26 +317,33 @@ def _summaries(paths: list[Path], results: Path) -> list[dict[str, Any]]:
 
 
 def update_readme(readme: Path, results: Path) -> None:
-    """Rewrite ``readme``'s generated blocks from a ``reproduce`` folder's ``summary.json`` files.
+    """Rewrite the generated blocks of a page from a ``reproduce`` folder's ``summary.json`` files.
 
     The results block from the reference runs; the MuJoCo block from the runs of
-    :data:`ENGINE_ROBOTS` on the MuJoCo plant (``results/mujoco/ROBOT/EXPERIMENT``).
+    :data:`ENGINE_ROBOTS` on the MuJoCo plant (``results/mujoco/ROBOT/EXPERIMENT``). A page
+    holds either block or both (the README holds the results, ``docs/gallery.md`` both).
 
     Raises:
-        PbvsError: If a summary is missing or the markers are.
+        PbvsError: If a summary is missing, or the page holds neither block.
     """
-    reference = _summaries([results / name / "summary.json" for name in CLAIMS], results)
-    mujoco = _summaries(
-        [results / "mujoco" / robot / name / "summary.json" for robot in ENGINE_ROBOTS
-         for name in CLAIMS], results,
-    )  # fmt: skip
     text = readme.read_text()
-    text = text.replace(readme_block(text), readme_results(reference))
-    text = text.replace(
-        readme_block(text, ENGINES_BEGIN, ENGINES_END), readme_engines(mujoco)
-    )
+    found = False
+    if README_BEGIN in text:
+        reference = _summaries([results / name / "summary.json" for name in CLAIMS], results)
+        text = text.replace(readme_block(text), readme_results(reference))
+        found = True
+    if ENGINES_BEGIN in text:
+        mujoco = _summaries(
+            [results / "mujoco" / robot / name / "summary.json" for robot in ENGINE_ROBOTS
+             for name in CLAIMS], results,
+        )  # fmt: skip
+        text = text.replace(readme_block(text, ENGINES_BEGIN, ENGINES_END), readme_engines(mujoco))
+        found = True
+    if not found:
+        raise PbvsError(f"{readme}: expected the markers {README_BEGIN!r} or {ENGINES_BEGIN!r}")
     readme.write_text(text)
 
 
-if __name__ == "__main__":  # python -m pbvs_pin.report README.md RESULTS
-    update_readme(Path(sys.argv[1]), Path(sys.argv[2]))
+if __name__ == "__main__":  # python -m pbvs_pin.report README.md docs/gallery.md RESULTS
+    for page in sys.argv[1:-1]:
+        update_readme(Path(page), Path(sys.argv[-1]))
