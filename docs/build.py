@@ -220,7 +220,8 @@ def generate(source: Path) -> None:
     shutil.copytree(DOCS, source, ignore=shutil.ignore_patterns(*NOT_PAGES), dirs_exist_ok=True)
     for name, title in PAGES_IN_PROGRESS.items():
         if not any((source / f"{name}{suffix}").exists() for suffix in (".rst", ".md")):
-            (source / f"{name}.rst").write_text(heading(title, "=") + "This page is being written.\n")
+            stub = heading(title, "=") + "This page is being written.\n"
+            (source / f"{name}.rst").write_text(stub)
     (source / "api.rst").write_text(api_page())
     (source / "internals.rst").write_text(internals_page())
     (source / "scenario_keys.rst").write_text(scenario_page())

@@ -24,6 +24,7 @@ from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.setup import SETTLE_TIME, build
 
+
 def page_text(name: str) -> str:
     """``docs/NAME.md`` with every run of whitespace (line breaks included) made one space."""
     return " ".join((REPO_ROOT / "docs" / f"{name}.md").read_text().split())
