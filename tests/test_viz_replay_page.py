@@ -58,7 +58,7 @@ def box(page: Page, element: str) -> dict:
 
 
 def crop(image: np.ndarray, where: dict) -> np.ndarray:
-    x, y = int(round(where["x"])), int(round(where["y"]))
+    x, y = round(where["x"]), round(where["y"])
     return image[y : y + int(where["height"]), x : x + int(where["width"])]
 
 
@@ -153,7 +153,7 @@ def test_the_inset_shows_the_image_points_and_xi_d(page, run):
     centre = log["target"][k]
     cx, cy = camera.width / 2, camera.height / 2
     for found, point in zip(_blobs(red), (half, -half), strict=True):
-        u, v = project_world(camera.focal_px, pose, centre + [0.0, 0.0, point])
+        u, v = project_world(camera.focal_px, pose, centre + np.array([0.0, 0.0, point]))
         np.testing.assert_allclose(found, [(cx - u) * scale, (cy - v) * scale], atol=2.0)
     u1, v1, v2 = log["xi_d"][0]
     for found, v in zip(_blobs(green), (v1, v2), strict=True):

@@ -121,7 +121,10 @@ SCRIPT = """<script>
   }
   function key(t) {  // the last key at or before t
     let lo = 0, hi = last;
-    while (lo < hi) { const mid = (lo + hi + 1) >> 1; if (times[mid] <= t + 1e-6) lo = mid; else hi = mid - 1; }
+    while (lo < hi) {
+      const mid = (lo + hi + 1) >> 1;
+      if (times[mid] <= t + 1e-6) lo = mid; else hi = mid - 1;
+    }
     return lo;
   }
   function dot(p, r, color, fill) {
