@@ -7,9 +7,10 @@ run's row carries the flags of :mod:`pbvs_pin.sim.metrics` (target lost, joints 
 collision, sustained oscillation) and its saturation fractions, so no row hides a failure.
 
 The README's results table is :func:`readme_results` of the reference runs, between
-:data:`README_BEGIN` and :data:`README_END`; ``python -m pbvs_pin.report README.md RESULTS``
-rewrites it from the ``summary.json`` files of a ``reproduce`` output folder, and a test checks
-it against fresh runs.
+:data:`README_BEGIN` and :data:`README_END`, and the gallery's MuJoCo table
+:func:`readme_engines`; ``python -m pbvs_pin.report README.md docs/gallery.md RESULTS`` rewrites
+them from the ``summary.json`` files of a ``reproduce`` output folder, and tests check them
+against fresh runs. The report opens with its findings (:mod:`pbvs_pin.findings`).
 """
 
 from __future__ import annotations
@@ -129,6 +130,18 @@ def claim_met(summary: dict[str, Any]) -> bool | None:
     return None if claim is None else bool(claim.check(summary))
 
 
+def verdict(summary: dict[str, Any]) -> str:
+    """``met (experiment1's rule)``, ``NOT met (...)``, or ``-`` for a scenario without a claim.
+
+    The verdict names the rule it was judged by: a run on another robot, on another plant or
+    with another law is judged by its experiment's rule (:data:`CLAIMS`).
+    """
+    met = claim_met(summary)
+    if met is None:
+        return "-"
+    return f"{'met' if met else 'NOT met'} ({summary['scenario']}'s rule)"
+
+
 def flags(summary: dict[str, Any]) -> list[str]:
     """What went wrong in a run (module docstring of :mod:`pbvs_pin.sim.metrics`)."""
     found = []
@@ -161,11 +174,9 @@ RUN_HEADER = (
 
 def run_row(s: dict[str, Any]) -> str:
     """One run's row: its figures, whether it meets its claim, and every flag."""
-    met = claim_met(s)
     clearance = s["min_clearance_m"]
     return (
-        f"| {s['robot']} | {s['scenario']} | {s['law']} | "
-        f"{'-' if met is None else ('met' if met else 'NOT met')} | "
+        f"| {s['robot']} | {s['scenario']} | {s['law']} | {verdict(s)} | "
         f"{s['max_abs_error_final_window_px']:.2f} | "
         f"{s['max_abs_error_after_transient_px']:.1f} | "
         f"{s['rms_error_after_transient_px']:.2f} | "
@@ -183,7 +194,10 @@ def runs_table(summaries: list[dict[str, Any]]) -> str:
 
 def claims_table() -> str:
     """Each experiment's claim beside the rule that decides it."""
-    lines = ["| experiment | paper's claim | rule for 'met' |", "|---|---|---|"]
+    lines = [
+        "| experiment | paper's claim | its rule: 'met' means all of this holds |",
+        "|---|---|---|",
+    ]
     lines += [
         f"| {name} | {c.text.replace('|', '&#124;')} | {c.rule} |" for name, c in CLAIMS.items()
     ]
@@ -230,11 +244,9 @@ def engine_row(s: dict[str, Any], speed: bool = True) -> str:
         s: The run's summary.
         speed: Include the real-time factor (a wall-clock figure).
     """
-    met = claim_met(s)
     ratio = s["yaw_rate_ratio"]
     cells = [
-        s["robot"], s["scenario"], s["engine"],
-        "-" if met is None else ("met" if met else "NOT met"),
+        s["robot"], s["scenario"], s["engine"], verdict(s),
         f"{s['max_abs_error_final_window_px']:.2f}", f"{s['rms_error_after_transient_px']:.2f}",
         f"{s['odometry_drift_m']:.3f}", f"{math.degrees(s['odometry_drift_rad']):.2f}",
         f"{s['lateral_slip_rms_mps']:.4f}", "-" if ratio is None else f"{ratio:.2f}",
