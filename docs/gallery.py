@@ -31,7 +31,7 @@ FIGURES = {
 }
 """Gallery file -> its source in a ``reproduce`` folder."""
 
-REPLAY = ("replay_experiment2.png", "experiment2/replay.html", 20.0)
+REPLAY = ("replay_experiment2.png", "experiment2/replay.html", 0.8)
 """The replay screenshot: gallery file, source page, instant shown [s]."""
 
 

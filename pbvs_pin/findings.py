@@ -19,15 +19,17 @@ IDEALISED = {
     "camera.latency": 0.0,
     "camera.rate": 1000.0,
     "camera.noise_px": 0.0,
+    "simulation.plant_dt": 0.0005,
     "estimator.predict": False,
 }
 """The paper's idealisations: the controller reads the true state, the camera has no latency
-and no noise and delivers a frame every millisecond."""
+and no noise and delivers a frame every millisecond (the plant then steps every 0.5 ms, as a
+camera frame must span more than one plant step)."""
 
 IDEALISATIONS = {
     "exact sensing": ("sensing.exact",),
     "no latency": ("camera.latency", "estimator.predict"),
-    "a 1 kHz camera without noise": ("camera.rate", "camera.noise_px"),
+    "a 1 kHz camera without noise": ("camera.rate", "camera.noise_px", "simulation.plant_dt"),
 }
 """Each idealisation and the keys of :data:`IDEALISED` that make it; a run "without" one keeps
 the scenario's own values of its keys and the rest of :data:`IDEALISED`."""
@@ -141,7 +143,7 @@ def compensation_paragraph(modes: list[dict[str, Any]]) -> list[str]:
         f"{_name(n)} ({on['max_abs_error_final_window_px']:.2f} against "
         f"{off['max_abs_error_final_window_px']:.2f} px)"
         for n, off, on in pairs
-        if on["max_abs_error_final_window_px"] > off["max_abs_error_final_window_px"]
+        if on["max_abs_error_final_window_px"] > 1.1 * off["max_abs_error_final_window_px"]
     ]
     size = (
         f"changes the velocity error by less than {max(change) * 100:.0f} %"
@@ -194,8 +196,9 @@ def passivity_paragraph(
     if idealised is None:
         return lines
     failing = [label for label in ("(14)", "(27)") if not all(h[label] for h in holds)]
+    ideal_holds = {label: [_holds(r)[label] for r in idealised["all"]] for label in failing}
     for label in failing:
-        ideal = [_holds(r)[label] for r in idealised["all"]]
+        ideal = ideal_holds[label]
         text = (
             f"  - {label} with every idealisation (exact sensing, no latency, a 1 kHz camera "
             f"without noise): holds in {_count(ideal)} experiments."
@@ -207,11 +210,19 @@ def passivity_paragraph(
                 breaking.append(f"{name} (without it: {_count(kept)})")
         if breaking:
             text += " It needs " + " and ".join(breaking) + "."
+        elif sum(ideal) < len(ideal) and label == "(14)" and sum(
+            _holds(r)["(27)"] for r in idealised["all"]
+        ) > sum(ideal):
+            text += (
+                " What it lacks is the velocity error: (27) is (14) plus the term of v - u, and "
+                "(27) holds in these runs. The servos never track u exactly, so (14) with "
+                "beta_1 = 0 cannot hold on a robot with dynamics."
+            )
         elif sum(ideal) < len(ideal):
             text += (
-                " It fails even so: what remains is the sampled control loop itself (1 kHz "
-                "control, 50 Hz integration of the log), the estimated target velocity and the "
-                "saturations, none of which the proof allows for."
+                " It fails even so: what remains is the sampled control loop itself, the "
+                "estimated target velocity and the saturations, none of which the proof allows "
+                "for."
             )
         else:
             text += " No single idealisation alone restores it: it needs them together."

@@ -106,6 +106,22 @@ def test_passivity_counts_and_the_idealisation_each_inequality_needs():
     assert "holds in all 4 experiments" in lines["(27)"]
 
 
+def test_14_failing_where_27_holds_is_put_down_to_the_velocity_error():
+    analyses = [analysis(p14=False, p27=False)]
+    idealised = {name: [analysis(p14=False)] for name in ("all", *IDEALISATIONS)}
+    text = findings_section([summary("experiment1")], [], [], [], analyses, idealised)
+    line = next(x for x in text.splitlines() if x.strip().startswith("- (14) with every"))
+    assert "What it lacks is the velocity error" in line
+
+
+def test_compensation_within_ten_percent_is_not_called_worse():
+    modes = [
+        summary("experiment4", final=0.13, compensation="off"),
+        summary("experiment4", final=0.14, compensation="platform"),
+    ]
+    assert "worse" not in findings_section([summary("experiment4")], [], [], modes, [])
+
+
 def test_passivity_without_idealised_runs_says_nothing_it_did_not_measure():
     text = findings_section([summary("experiment1")], [], [], [], [analysis(p27=False)])
     assert "(27) holds in none of the 1 experiments" in text
