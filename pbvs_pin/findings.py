@@ -215,8 +215,8 @@ def passivity_paragraph(
         ) > sum(ideal):
             text += (
                 " What it lacks is the velocity error: (27) is (14) plus the term of v - u, and "
-                "(27) holds in these runs. The servos never track u exactly, so (14) with "
-                "beta_1 = 0 cannot hold on a robot with dynamics."
+                "(27) holds in these runs. The servos never track u exactly here, so (14) with "
+                "beta_1 = 0 fails on this robot with its dynamics."
             )
         elif sum(ideal) < len(ideal):
             text += (
