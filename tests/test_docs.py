@@ -126,7 +126,7 @@ def test_the_theory_map_names_code_and_tests_that_exist():
         assert re.search(rf"^def {test}\(", source, re.M), f"tests/{file}::{test}"
     for equation in ("(1)", "(2)", "(3)", "(7)", "(9)", "(10)", "(14)", "(16)", "(17)", "(19)",
                      "(20)", "(27)", "(30)", "(31)", "(39)"):  # fmt: skip
-        assert f"| {equation}" in text or f", {equation}" in text, equation
+        assert f"**{equation}" in text or f", {equation}**" in text, equation
 
 
 JS_BROKEN = """() => {
