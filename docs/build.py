@@ -2,10 +2,12 @@
 
     python docs/build.py [OUT]     # default OUT: docs/_build/html
 
-The hand-written pages (``conf.py`` and every ``.rst`` beside it) are copied into a temporary
-source folder beside three generated ones:
+The hand-written pages (``conf.py``, the ``.rst`` and ``.md`` pages, ``_static/``) are copied into
+a temporary source folder beside four generated ones:
 
-- ``api.rst``: one ``automodule`` per module of the package (autodoc + napoleon, Google style);
+- ``api.rst``: the public names (``pbvs_pin.__all__``), each documented where it is defined
+  (autodoc + napoleon, Google style);
+- ``internals.rst``: every other module of the package and its members;
 - ``scenario_keys.rst``: every scenario key, generated from the typed sections of
   :mod:`pbvs_pin.sim.sections` (:func:`~pbvs_pin.sim.sections.keys_of`) and the obstacle
   classes;
@@ -33,6 +35,8 @@ from pbvs_pin.sim.sections import SECTIONS
 from pbvs_pin.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS, SWEEP_TABLE_DOCS
 
 DOCS = Path(__file__).resolve().parent
+NOT_PAGES = ("_build", "build.py", "gallery.py", "__pycache__")
+"""What of ``docs/`` is not copied into the source folder."""
 
 
 def heading(title: str, underline: str) -> str:
@@ -62,18 +66,53 @@ def table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
     return "\n".join(lines) + "\n\n"
 
 
+def _public() -> dict[str, str]:
+    """``name -> "module.name"``: each public name and where it is defined."""
+    public = {}
+    for name in pbvs_pin.__all__:
+        obj = getattr(pbvs_pin, name)
+        module = getattr(obj, "__module__", None)
+        if inspect.isclass(obj) or inspect.isfunction(obj):
+            public[name] = f"{module}.{obj.__qualname__}"
+    return public
+
+
 def api_page() -> str:
-    """``api.rst``: every module of the package, in import-path order."""
-    modules = pkgutil.walk_packages(pbvs_pin.__path__, "pbvs_pin.")
-    names = ["pbvs_pin", *sorted(info.name for info in modules)]
+    """``api.rst``: the public names of ``pbvs_pin.__all__``, each where it is defined."""
     text = heading("API reference", "=")
-    text += "Generated from the docstrings of every module.\n\n"
-    for name in names:
+    text += (
+        "The names ``import pbvs_pin`` exports (``pbvs_pin.__all__``), in that order. Everything "
+        "else is internal: :doc:`internals`.\n\n"
+        ".. automodule:: pbvs_pin\n   :no-members:\n\n"
+    )
+    constants = [n for n in pbvs_pin.__all__ if n not in _public()]
+    for name, target in _public().items():
+        obj = getattr(pbvs_pin, name)
+        directive = "autoclass" if inspect.isclass(obj) else "autofunction"
+        text += heading(name, "-") + f".. {directive}:: {target}\n\n"
+    if constants:
+        text += heading("Constants", "-")
+        for name in constants:
+            text += f"- ``pbvs_pin.{name}`` = ``{getattr(pbvs_pin, name)!r}``\n"
+        text += "\n"
+    return text
+
+
+def internals_page() -> str:
+    """``internals.rst``: every module of the package, the public names left out."""
+    public = set(_public().values())
+    modules = pkgutil.walk_packages(pbvs_pin.__path__, "pbvs_pin.")
+    text = heading("Internals", "=")
+    text += (
+        "Every module of the package, generated from its docstrings. These names may change "
+        "between versions; the stable ones are on :doc:`api`.\n\n"
+    )
+    for name in sorted(info.name for info in modules):
         text += heading(name, "-") + f".. automodule:: {name}\n"
-        if name == "pbvs_pin":  # its members are documented in their own modules
-            text += "   :no-members:\n\n"
-            text += "Exported: " + ", ".join(f":py:obj:`{n}`" for n in pbvs_pin.__all__)
-        text += "\n\n"
+        exclude = sorted(p.rsplit(".", 1)[1] for p in public if p.rsplit(".", 1)[0] == name)
+        if exclude:
+            text += "   :exclude-members: " + ", ".join(exclude) + "\n"
+        text += "\n"
     return text
 
 
@@ -170,10 +209,9 @@ def sweep_page() -> str:
 
 def generate(source: Path) -> None:
     """Write the hand-written and the generated pages into ``source``."""
-    source.mkdir(parents=True, exist_ok=True)
-    for path in [DOCS / "conf.py", *DOCS.glob("*.rst")]:  # the hand-written pages
-        shutil.copy(path, source / path.name)
+    shutil.copytree(DOCS, source, ignore=shutil.ignore_patterns(*NOT_PAGES), dirs_exist_ok=True)
     (source / "api.rst").write_text(api_page())
+    (source / "internals.rst").write_text(internals_page())
     (source / "scenario_keys.rst").write_text(scenario_page())
     (source / "sweep_keys.rst").write_text(sweep_page())
 

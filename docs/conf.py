@@ -4,7 +4,14 @@ project = "pbvs_pin"
 author = "the pbvs_pin developers"
 copyright = "the pbvs_pin developers"
 
-extensions = ["sphinx.ext.autodoc", "sphinx.ext.napoleon", "sphinx.ext.mathjax"]
+extensions = [
+    "myst_parser",
+    "sphinx.ext.autodoc",
+    "sphinx.ext.napoleon",
+    "sphinx.ext.mathjax",
+]
+source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
+myst_heading_anchors = 3  # "#some-heading" links inside and between Markdown pages
 
 napoleon_google_docstring = True
 napoleon_numpy_docstring = False
@@ -14,6 +21,7 @@ autodoc_typehints = "description"
 autodoc_default_options = {"members": True, "show-inheritance": True}
 
 smartquotes = False  # keys and values read as typed
-html_theme = "alabaster"
-html_static_path: list[str] = []
-exclude_patterns = ["_build"]
+html_theme = "furo"  # maintained; its assets ship with the package, so the build is offline
+html_title = "pbvs_pin"
+html_static_path = ["_static"]
+exclude_patterns = ["_build", "README.md"]

@@ -20,6 +20,7 @@ from pbvs_pin.exceptions import (
     RunInterrupted,
     ScenarioError,
 )
+from pbvs_pin.findings import IDEALISATIONS, IDEALISED, findings_section, without
 from pbvs_pin.interrupts import (
     interrupt_point,
     interrupts_held,
@@ -173,6 +174,7 @@ def reproduce(
     replays: bool = True,
     robustness: bool = True,
     engines: tuple[str, ...] = ENGINE_ROBOTS,
+    idealised: bool = True,
 ) -> Path:
     """Run Experiments 1-4 (reference robot, other robots, IBVS, compensation); write the report.
 
@@ -189,10 +191,13 @@ def reproduce(
         echo: Where progress lines go.
         replays: Also write an HTML replay of each reference run.
         robustness: Also run the robustness map of :mod:`pbvs_pin.robustness` (each camera
-            fault alone, Experiment 1, without and with compensation) and draw
+            fault alone, Experiment 1, without and with the estimator's fault handling) and draw
             ``robustness.png``.
         engines: Robots whose experiments are also run on the MuJoCo plant and reported
             beside their Pinocchio-plant runs (a Pinocchio run not made above is made).
+        idealised: Where a passivity inequality fails on a reference run, run the
+            experiments again with the paper's idealisations, and without each of them
+            (:mod:`pbvs_pin.findings`), so that the findings can say which one it needs.
 
     Returns:
         Path of the markdown report.
@@ -219,6 +224,7 @@ def reproduce(
         echo(f"[{done}/{jobs}] {run_row(summary)}")
         return summary
 
+    _compile(engines, echo)
     echo(f"{jobs} runs; after each, its row: {RUN_HEADER.splitlines()[0]}")
     for name in CLAIMS:
         folder = out / name
@@ -242,15 +248,60 @@ def reproduce(
             modes += _compensation_runs(name, reference[-1], out, finished)
         plants += _engine_runs(name, reference + others, engines, out, finished)
     robust = _robustness_map(out, echo) if robustness else ""
+    ideal = _idealised_runs(analyses, out, echo) if idealised else None
     echo(f"writing the report {out / 'report.md'}")
     comparison = baseline_section(pairs, gain) if baseline else ""
-    text = _report(reference, others, classic, modes, replays)
+    findings = findings_section(reference, others, pairs, modes, analyses, ideal)
+    text = _report(reference, others, classic, modes, replays, findings)
     text += _engines_section(plants) + comparison + _analysis_section(analyses) + robust
     path = out / "report.md"
     write_text_atomically(path, text)
     echo("")
     echo(runs_table(reference + others))
     return path
+
+
+def _compile(engines: tuple[str, ...], echo: Callable[[str], None]) -> None:
+    """Compile (or load) the kernels before the first run, so that no run's time includes it.
+
+    A tenth of a second of Experiment 1 on the Pinocchio plant, and on the MuJoCo plant when
+    ``engines`` asks for it: the real-time factors of the report then measure the runs alone.
+    """
+    echo("compiling the kernels (or loading them) before the runs")
+    scenario = load_scenario("experiment1").with_values(duration=0.1)
+    simulate(scenario, progress=False)
+    if engines:
+        simulate(scenario.with_values(**{"plant.engine": "mujoco"}), progress=False)
+
+
+def _idealised_runs(
+    analyses: list[dict[str, Any]], out: Path, echo: Callable[[str], None]
+) -> dict[str, list[dict[str, Any]]] | None:
+    """The analyses of the experiments run with the paper's idealisations, and without each.
+
+    Only when (14) with beta_1 = 0 or (27) fails on a reference run; None otherwise. The runs
+    go to ``out/idealised/VARIANT/EXPERIMENT`` (log and summary, no figures).
+    """
+    from pbvs_pin.analysis import analyze_run
+
+    failing = any(
+        not (a["passivity_14"]["holds_with_beta_1_zero"] and a["passivity_27"]["holds"])
+        for a in analyses
+    )
+    if not failing:
+        return None
+    variants = {"all": IDEALISED, **{name: without(name) for name in IDEALISATIONS}}
+    found: dict[str, list[dict[str, Any]]] = {}
+    for variant, values in variants.items():
+        found[variant] = []
+        label = "every idealisation" if variant == "all" else f"all but {variant}"
+        for name in CLAIMS:
+            echo(f"  {name} with {label}: passivity check")
+            folder = out / "idealised" / variant.replace(" ", "_") / name
+            run_scenario(load_scenario(name).with_values(**values), folder, figures=False,
+                         progress=False)  # fmt: skip
+            found[variant].append(analyze_run(folder))
+    return found
 
 
 def _compensation_runs(
@@ -308,8 +359,8 @@ def _engines_section(plants: list[dict[str, Any]]) -> str:
             "heading between the wheel-odometry pose and the true pose at the end; lateral "
             "slip: RMS of the platform's sideways speed; yaw rate / wheels': the platform's "
             "true turn rate over the one its wheel speeds imply (1 without slip). The "
-            "real-time factor of a run includes compiling the kernels when they were not "
-            "compiled yet (the first run).",
+            "real-time factor is simulated time over the run's wall-clock time; the kernels "
+            "were compiled before the first run, so it does not include compiling.",
             "",
             engines_table(plants),
             "",
@@ -321,7 +372,7 @@ def _robustness_map(out: Path, echo: Callable[[str], None]) -> str:
     """Run the robustness map, draw ``out/robustness.png``; the report's section."""
     from pbvs_pin.robustness import write_map
 
-    echo("robustness map: each camera fault alone, without and with compensation")
+    echo("robustness map: each camera fault alone, without and with the estimator's fault handling")
     return write_map(out, echo=echo)[1]
 
 
@@ -398,12 +449,18 @@ def _fmt(value: Any) -> str:
 
 
 def _report(
-    reference: list, others: list, classic: list, modes: list | None = None, replays: bool = True
+    reference: list,
+    others: list,
+    classic: list,
+    modes: list | None = None,
+    replays: bool = True,
+    findings: str = "",
 ) -> str:
-    """The markdown report: claims and rules, every run's flagged row, IBVS, compensation."""
+    """The markdown report: findings, claims, every run's flagged row, IBVS, compensation."""
     lines = [
         "# pbvs_pin: the paper's experiments reproduced in simulation",
         "",
+        *([findings] if findings else []),
         "## The paper's claims and the rules that decide them",
         "",
         claims_table(),

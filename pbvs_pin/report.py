@@ -7,9 +7,10 @@ run's row carries the flags of :mod:`pbvs_pin.sim.metrics` (target lost, joints 
 collision, sustained oscillation) and its saturation fractions, so no row hides a failure.
 
 The README's results table is :func:`readme_results` of the reference runs, between
-:data:`README_BEGIN` and :data:`README_END`; ``python -m pbvs_pin.report README.md RESULTS``
-rewrites it from the ``summary.json`` files of a ``reproduce`` output folder, and a test checks
-it against fresh runs.
+:data:`README_BEGIN` and :data:`README_END`, and the gallery's MuJoCo table
+:func:`readme_engines`; ``python -m pbvs_pin.report README.md docs/gallery.md RESULTS`` rewrites
+them from the ``summary.json`` files of a ``reproduce`` output folder, and tests check them
+against fresh runs. The report opens with its findings (:mod:`pbvs_pin.findings`).
 """
 
 from __future__ import annotations
@@ -104,7 +105,7 @@ CLAIMS = {
         lambda s: _sound(s) and s["max_abs_error_final_window_px"] < 0.5,
     ),
 }
-"""The paper's claim for each experiment (§5) and its rule (DESIGN.md §4)."""
+"""The paper's claim for each experiment (§5) and its rule (the design notes, §4)."""
 
 FLAG_RULES = (
     "Flags: *lost N from t s*: the target was out of view for N log samples, first at t; "
@@ -127,6 +128,18 @@ def claim_met(summary: dict[str, Any]) -> bool | None:
     """Whether a run meets its experiment's claim; None for a scenario without one."""
     claim = CLAIMS.get(summary["scenario"])
     return None if claim is None else bool(claim.check(summary))
+
+
+def verdict(summary: dict[str, Any]) -> str:
+    """``met (experiment1's rule)``, ``NOT met (...)``, or ``-`` for a scenario without a claim.
+
+    The verdict names the rule it was judged by: a run on another robot, on another plant or
+    with another law is judged by its experiment's rule (:data:`CLAIMS`).
+    """
+    met = claim_met(summary)
+    if met is None:
+        return "-"
+    return f"{'met' if met else 'NOT met'} ({summary['scenario']}'s rule)"
 
 
 def flags(summary: dict[str, Any]) -> list[str]:
@@ -161,11 +174,9 @@ RUN_HEADER = (
 
 def run_row(s: dict[str, Any]) -> str:
     """One run's row: its figures, whether it meets its claim, and every flag."""
-    met = claim_met(s)
     clearance = s["min_clearance_m"]
     return (
-        f"| {s['robot']} | {s['scenario']} | {s['law']} | "
-        f"{'-' if met is None else ('met' if met else 'NOT met')} | "
+        f"| {s['robot']} | {s['scenario']} | {s['law']} | {verdict(s)} | "
         f"{s['max_abs_error_final_window_px']:.2f} | "
         f"{s['max_abs_error_after_transient_px']:.1f} | "
         f"{s['rms_error_after_transient_px']:.2f} | "
@@ -183,7 +194,10 @@ def runs_table(summaries: list[dict[str, Any]]) -> str:
 
 def claims_table() -> str:
     """Each experiment's claim beside the rule that decides it."""
-    lines = ["| experiment | paper's claim | rule for 'met' |", "|---|---|---|"]
+    lines = [
+        "| experiment | paper's claim | its rule: 'met' means all of this holds |",
+        "|---|---|---|",
+    ]
     lines += [
         f"| {name} | {c.text.replace('|', '&#124;')} | {c.rule} |" for name, c in CLAIMS.items()
     ]
@@ -230,11 +244,9 @@ def engine_row(s: dict[str, Any], speed: bool = True) -> str:
         s: The run's summary.
         speed: Include the real-time factor (a wall-clock figure).
     """
-    met = claim_met(s)
     ratio = s["yaw_rate_ratio"]
     cells = [
-        s["robot"], s["scenario"], s["engine"],
-        "-" if met is None else ("met" if met else "NOT met"),
+        s["robot"], s["scenario"], s["engine"], verdict(s),
         f"{s['max_abs_error_final_window_px']:.2f}", f"{s['rms_error_after_transient_px']:.2f}",
         f"{s['odometry_drift_m']:.3f}", f"{math.degrees(s['odometry_drift_rad']):.2f}",
         f"{s['lateral_slip_rms_mps']:.4f}", "-" if ratio is None else f"{ratio:.2f}",
@@ -317,26 +329,33 @@ def _summaries(paths: list[Path], results: Path) -> list[dict[str, Any]]:
 
 
 def update_readme(readme: Path, results: Path) -> None:
-    """Rewrite ``readme``'s generated blocks from a ``reproduce`` folder's ``summary.json`` files.
+    """Rewrite the generated blocks of a page from a ``reproduce`` folder's ``summary.json`` files.
 
     The results block from the reference runs; the MuJoCo block from the runs of
-    :data:`ENGINE_ROBOTS` on the MuJoCo plant (``results/mujoco/ROBOT/EXPERIMENT``).
+    :data:`ENGINE_ROBOTS` on the MuJoCo plant (``results/mujoco/ROBOT/EXPERIMENT``). A page
+    holds either block or both (the README holds the results, ``docs/gallery.md`` both).
 
     Raises:
-        PbvsError: If a summary is missing or the markers are.
+        PbvsError: If a summary is missing, or the page holds neither block.
     """
-    reference = _summaries([results / name / "summary.json" for name in CLAIMS], results)
-    mujoco = _summaries(
-        [results / "mujoco" / robot / name / "summary.json" for robot in ENGINE_ROBOTS
-         for name in CLAIMS], results,
-    )  # fmt: skip
     text = readme.read_text()
-    text = text.replace(readme_block(text), readme_results(reference))
-    text = text.replace(
-        readme_block(text, ENGINES_BEGIN, ENGINES_END), readme_engines(mujoco)
-    )
+    found = False
+    if README_BEGIN in text:
+        reference = _summaries([results / name / "summary.json" for name in CLAIMS], results)
+        text = text.replace(readme_block(text), readme_results(reference))
+        found = True
+    if ENGINES_BEGIN in text:
+        mujoco = _summaries(
+            [results / "mujoco" / robot / name / "summary.json" for robot in ENGINE_ROBOTS
+             for name in CLAIMS], results,
+        )  # fmt: skip
+        text = text.replace(readme_block(text, ENGINES_BEGIN, ENGINES_END), readme_engines(mujoco))
+        found = True
+    if not found:
+        raise PbvsError(f"{readme}: expected the markers {README_BEGIN!r} or {ENGINES_BEGIN!r}")
     readme.write_text(text)
 
 
-if __name__ == "__main__":  # python -m pbvs_pin.report README.md RESULTS
-    update_readme(Path(sys.argv[1]), Path(sys.argv[2]))
+if __name__ == "__main__":  # python -m pbvs_pin.report README.md docs/gallery.md RESULTS
+    for page in sys.argv[1:-1]:
+        update_readme(Path(page), Path(sys.argv[-1]))

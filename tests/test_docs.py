@@ -76,3 +76,119 @@ def test_the_api_reference_documents_the_public_api(site):
         assert f'id="{name}"' in raw, name
     text = page_text(site, "api.html")
     assert "Returns" in text and "Raises" in text  # napoleon turned Google sections into fields
+
+
+def test_the_api_reference_puts_the_public_names_first_and_internals_apart(site):
+    import pbvs_pin
+
+    api, internals = (site / "api.html").read_text(), (site / "internals.html").read_text()
+    for name in pbvs_pin.__all__:
+        obj = getattr(pbvs_pin, name)
+        if isinstance(obj, type) or callable(obj):
+            target = f"{obj.__module__}.{obj.__qualname__}"
+            assert f'id="{target}"' in api, target
+            assert f'id="{target}"' not in internals, target  # documented once, publicly
+    assert 'id="pbvs_pin.sim.keys.keys_of"' in internals
+
+
+def test_the_index_leads_to_every_section():
+    index = (REPO_ROOT / "docs" / "index.rst").read_text()
+    for caption in ("Start", "Guides", "Theory and design", "Reference"):
+        assert f":caption: {caption}" in index
+    for page in (
+        "getting_started", "gallery", "own_robot", "controller", "scenarios", "faults",
+        "analysis", "sweeps", "theory", "design", "style", "api", "internals",
+        "bad_input", "zoo", "rendered_camera",
+    ):  # fmt: skip
+        assert re.search(rf"^   {page}$", index, re.M), page
+
+
+def test_the_theory_map_names_code_and_tests_that_exist():
+    """Every importable name and every ``tests/FILE::TEST`` on the theory map exists."""
+    import importlib
+
+    text = (REPO_ROOT / "docs" / "theory.md").read_text()
+    names = set(re.findall(r"`(pbvs_pin(?:\.\w+)+)`", text))
+    tests = set(re.findall(r"`tests/(\w+\.py)::(\w+)`", text))
+    assert len(names) >= 20 and len(tests) >= 25
+    for dotted in sorted(names):
+        parts = dotted.split(".")
+        for cut in range(len(parts), 0, -1):  # the longest importable module, then attributes
+            try:
+                obj = importlib.import_module(".".join(parts[:cut]))
+            except ImportError:
+                continue
+            for attribute in parts[cut:]:
+                obj = getattr(obj, attribute)
+            break
+    for file, test in sorted(tests):
+        source = (REPO_ROOT / "tests" / file).read_text()
+        assert re.search(rf"^def {test}\(", source, re.M), f"tests/{file}::{test}"
+    for equation in ("(1)", "(2)", "(3)", "(7)", "(9)", "(10)", "(14)", "(16)", "(17)", "(19)",
+                     "(20)", "(27)", "(30)", "(31)", "(39)"):  # fmt: skip
+        assert f"**{equation}" in text or f", {equation}**" in text, equation
+
+
+JS_BROKEN = """() => {
+    const images = [...document.images].filter(i => !i.complete || i.naturalWidth === 0)
+        .map(i => i.getAttribute('src'));
+    const links = [...document.querySelectorAll('a[href]')].map(a => a.href)
+        .filter(h => h.startsWith('file://'));
+    return {images, links, title: document.title,
+            text: document.body.innerText.length};
+}"""
+
+
+def test_every_page_renders_with_no_broken_image_or_link(site):
+    """Each page opens in Chromium; every image loads, every local link reaches a file and,
+    with a fragment, an element of that id."""
+    from urllib.parse import unquote, urlparse
+
+    from browser import chromium
+
+    pages = sorted(p for p in site.rglob("*.html") if "_static" not in p.parts)
+    assert len(pages) >= 20
+    anchors: dict[Path, set[str]] = {}
+
+    def ids(path: Path) -> set[str]:
+        if path not in anchors:
+            anchors[path] = set(re.findall(r'id="([^"]+)"', path.read_text()))
+        return anchors[path]
+
+    with chromium() as browser:
+        tab = browser.new_page()
+        errors: list[str] = []
+        tab.on("pageerror", lambda e: errors.append(str(e)))
+        for page in pages:
+            tab.goto(page.as_uri())
+            found = tab.evaluate(JS_BROKEN)
+            assert not found["images"], (page.name, found["images"])
+            assert found["text"] > 50, page.name  # the page has content
+            for link in found["links"]:
+                parsed = urlparse(link)
+                target = Path(unquote(parsed.path))
+                assert target.exists(), (page.name, link)
+                if parsed.fragment and target.suffix == ".html":
+                    assert unquote(parsed.fragment) in ids(target), (page.name, link)
+        assert not errors, errors
+
+
+QUICK_START = (
+    "pip install . && pbvs-pin reproduce --out results\n"
+    "pip install '.[test]' && ruff check pbvs_pin tests examples && python -m pytest -q\n"
+)
+
+
+def test_the_readme_is_a_front_door():
+    """At most 200 lines; the two quick-start commands; a picture; every local link resolves."""
+    readme = (REPO_ROOT / "README.md").read_text()
+    assert len(readme.splitlines()) <= 200
+    assert f"```bash\n{QUICK_START}```" in readme
+    ci = (REPO_ROOT / ".ci" / "run").read_text().replace("pip install -q ", "pip install ")
+    assert QUICK_START.splitlines()[1] in ci  # CI runs the README's test command
+    links = re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", readme)
+    local = [link for link in links if "://" not in link]
+    assert any(link.endswith(".png") for link in local)
+    assert len(local) >= 10
+    for link in local:
+        assert (REPO_ROOT / link).exists(), link

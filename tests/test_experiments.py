@@ -272,7 +272,7 @@ def test_readme_results_match_fresh_runs(runs):
     readme = readme_block((REPO_ROOT / "README.md").read_text())
     assert readme == readme_results(reference), (
         "README results differ from fresh runs: regenerate with pbvs-pin reproduce --out "
-        "results && python -m pbvs_pin.report README.md results"
+        "results && python -m pbvs_pin.report README.md docs/gallery.md results"
     )
     report = _report(reference, [], [])
     numbers = [cell for line in readme.splitlines()[3:-1] for cell in line.split(" | ")[3:7]]

@@ -1,4 +1,5 @@
-"""The README's Python code runs verbatim, each block in a fresh process from an empty folder."""
+"""The Python code of the README and of the docs pages runs verbatim, each block in a fresh
+process from an empty folder."""
 
 import os
 import re
@@ -10,7 +11,11 @@ import numpy as np
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-BLOCKS = re.findall(r"```python\n(.*?)```", (REPO_ROOT / "README.md").read_text(), re.S)
+PAGES = [REPO_ROOT / "README.md", *sorted((REPO_ROOT / "docs").glob("*.md"))]
+"""The README and the Markdown pages of the documentation."""
+BLOCKS = [
+    block for page in PAGES for block in re.findall(r"```python\n(.*?)```", page.read_text(), re.S)
+]
 
 
 def run_block(code: str, folder: Path) -> str:
@@ -29,8 +34,11 @@ def run_block(code: str, folder: Path) -> str:
     return result.stdout
 
 
-def test_the_readme_has_python_blocks():
-    assert len(BLOCKS) >= 2
+def test_getting_started_has_the_python_blocks():
+    page = (REPO_ROOT / "docs" / "getting_started.md").read_text()
+    found = re.findall(r"```python\n(.*?)```", page, re.S)
+    assert any("features.jacobians" in block for block in found)
+    assert any("pbvs_pin.simulate" in block for block in found)
 
 
 @pytest.mark.parametrize("index", range(len(BLOCKS)))

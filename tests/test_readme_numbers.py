@@ -1,10 +1,10 @@
-"""The README's measured numbers outside its generated blocks, each recomputed from a fresh run.
+"""The measured numbers in the docs' prose, each recomputed from a fresh run.
 
-The generated blocks (the results and the MuJoCo tables) are checked by ``test_experiments.py``
-and ``test_mujoco_acceptance.py``. The figures in the README's prose are checked here: each
-test runs the configuration its sentence names, formats the figure as the README writes it and
-looks for the sentence. When one fails, the behaviour changed: measure again and update the
-sentence (or the conclusion drawn from it).
+The generated blocks (the README's results table, the gallery's MuJoCo table) are checked by
+``test_experiments.py`` and ``test_mujoco_acceptance.py``. The figures in the prose of the docs
+pages are checked here: each test runs the configuration its sentence names, formats the figure
+as the page writes it and looks for the sentence on its page. When one fails, the behaviour
+changed: measure again and update the sentence (or the conclusion drawn from it).
 """
 
 from __future__ import annotations
@@ -24,8 +24,10 @@ from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.setup import SETTLE_TIME, build
 
-README = " ".join((REPO_ROOT / "README.md").read_text().split())
-"""The README with every run of whitespace (line breaks included) made one space."""
+
+def page_text(name: str) -> str:
+    """``docs/NAME.md`` with every run of whitespace (line breaks included) made one space."""
+    return " ".join((REPO_ROOT / "docs" / f"{name}.md").read_text().split())
 
 NET_OFF = 1e6
 """A loop-gain margin the net never reaches: the net switched off."""
@@ -60,15 +62,15 @@ def run(experiment: str, **values: object) -> tuple[dict, dict[str, float]]:
     return _run(experiment, tuple(sorted(hashable.items())))
 
 
-def stated(sentence: str) -> None:
-    assert sentence in README, f"the README no longer says {sentence!r}: measure again"
+def stated(sentence: str, page: str = "departures") -> None:
+    assert sentence in page_text(page), f"docs/{page}.md no longer says {sentence!r}: measure again"
 
 
 def test_the_reference_cameras_home_height():
     setup = build(load_scenario("experiment1"))
     height = setup.robot.camera_pose(setup.plant.q).translation[2]
     assert height < 0.5  # below the band: the sentence's point
-    stated(f"the Cyton's camera gets to {height:.2f} m high")
+    stated(f"the Cyton's camera gets to {height:.2f} m high", "own_robot")
 
 
 def test_the_four_faults_are_the_tested_ones():
@@ -76,7 +78,8 @@ def test_the_four_faults_are_the_tested_ones():
         f"four faults together: {ALL_FAULTS['camera.latency'] * 1e3:.0f} ms latency, "
         f"{ALL_FAULTS['camera.noise_px']:.0f} px noise, "
         f"{ALL_FAULTS['camera.drop_probability'] * 100:.0f} % of the frames dropped and a "
-        f"{ALL_FAULTS['camera.occlusion_duration']:.0f} s occlusion"
+        f"{ALL_FAULTS['camera.occlusion_duration']:.0f} s occlusion",
+        "faults",
     )
 
 
@@ -84,7 +87,8 @@ def test_the_old_idealisation():
     errors = [run(name, **IDEALISED)[0]["max_abs_error_final_window_px"] for name in EXPERIMENTS]
     stated(
         f"the reference robot's largest feature errors over the last 5 s are {errors[0]:.2f}, "
-        f"{errors[1]:.2f}, {errors[2]:.2f} and {errors[3]:.3f} px in Experiments 1-4"
+        f"{errors[1]:.2f}, {errors[2]:.2f} and {errors[3]:.3f} px in Experiments 1-4",
+        "idealisations",
     )
 
 
@@ -206,10 +210,14 @@ def test_compensating_the_arm_too():
         f"the arm's |v - u| RMS rose from {platform['velocity_tracking_rms_arm']:.4f} "
         f"(`platform`) to {arm_too[3]['velocity_tracking_rms_arm']:.4f} and the error over the "
         f"last 5 s from {platform['max_abs_error_final_window_px']:.2f} to "
-        f"{arm_too[3]['max_abs_error_final_window_px']:.2f} px"
+        f"{arm_too[3]['max_abs_error_final_window_px']:.2f} px",
+        "limitations",
     )
     oscillation = [summary["oscillation_rms_px"] for summary in arm_too]
-    stated(f"oscillate by {min(oscillation):.1f}-{max(oscillation):.1f} px RMS above 0.5 Hz")
+    stated(
+        f"oscillate by {min(oscillation):.1f}-{max(oscillation):.1f} px RMS above 0.5 Hz",
+        "limitations",
+    )
 
 
 def test_the_net_on_six_and_seven_joint_arms():
@@ -230,8 +238,8 @@ def test_the_net_on_six_and_seven_joint_arms():
 def test_the_skid_steer_spin():
     robot = load_robot("pioneer_cyton")
     chi = robot.base.track_factor
-    stated(f"Coulomb friction expands its track by {chi:.2f}")
-    stated(f"it would turn at {1.0 / chi:.2f} of")
+    stated(f"Coulomb friction expands its track by {chi:.2f}", "limitations")
+    stated(f"it would turn at {1.0 / chi:.2f} of", "limitations")
 
     def yaw_rate(u: float, omega: float, loop: bool) -> float:
         options = {} if loop else {"yaw_integral_time": None}
@@ -241,11 +249,12 @@ def test_the_skid_steer_spin():
     slow, fast = yaw_rate(0.0, 0.1, False), yaw_rate(0.0, 0.4, False)
     stated(
         f"commanded to spin at 0.4 rad/s it turns at {fast:.2f} rad/s ({fast / 0.4:.2f} of the "
-        f"command; {slow / 0.1:.2f} at 0.1 rad/s)"
+        f"command; {slow / 0.1:.2f} at 0.1 rad/s)",
+        "limitations",
     )
     commands = ((0.0, 0.1), (0.0, 0.4), (0.2, 0.2))
     worst = max(abs(yaw_rate(u, omega, True) / omega - 1.0) for u, omega in commands)
-    stated(f"within {worst * 100:.1f} % spinning at 0.1 and 0.4 rad/s")
+    stated(f"within {worst * 100:.1f} % spinning at 0.1 and 0.4 rad/s", "limitations")
 
 
 def test_tiago_pro_on_the_mujoco_plant():
@@ -260,7 +269,8 @@ def test_tiago_pro_on_the_mujoco_plant():
         f"skid-steer platform with an expansion factor of {robot.base.track_factor:.1f}: "
         f"commanded to spin at 0.4 rad/s it turns at {spin:.3f} rad/s, and Experiments 1 and 4 "
         f"end {runs[0]['max_abs_error_final_window_px']:.1f} and "
-        f"{runs[1]['max_abs_error_final_window_px']:.1f} px off (target never lost)"
+        f"{runs[1]['max_abs_error_final_window_px']:.1f} px off (target never lost)",
+        "limitations",
     )
 
 
@@ -274,4 +284,4 @@ def test_unshipped_arms_on_the_mujoco_plant():
         return f"{errors[0]:.2f}, {errors[1]:.2f}, {errors[2]:.2f} and {errors[3]:.2f} px"
 
     stated(f"the UR10 ends Experiments 1-4 at {finals('ur10')}, the Reach Bravo 7 at "
-           f"{finals('bravo7_no_ee')}")  # fmt: skip
+           f"{finals('bravo7_no_ee')}", "limitations")  # fmt: skip

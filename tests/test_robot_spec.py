@@ -270,9 +270,9 @@ def test_info_takes_a_scenario_and_reports_errors_in_one_line(tmp_path, capsys):
 
 
 def _readme_robot_tables() -> list[str]:
-    """The TOML blocks of the README's "Use your own robot" section."""
-    readme = (REPO_ROOT / "README.md").read_text()
-    section = readme.split("## Use your own robot\n", 1)[1].split("\n## ", 1)[0]
+    """The TOML blocks of the "Describing a robot" section of docs/own_robot.md."""
+    page = (REPO_ROOT / "docs" / "own_robot.md").read_text()
+    section = page.split("## Describing a robot\n", 1)[1].split("\n## ", 1)[0]
     return re.findall(r"```toml\n(.*?)```", section, flags=re.DOTALL)
 
 

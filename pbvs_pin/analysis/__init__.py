@@ -1,7 +1,7 @@
 r"""Robustness and L2-gain figures of a run: the paper's §4, eqs. (30)-(42), and §3.2, (9)-(14).
 
 Everything is computed from a :class:`~pbvs_pin.sim.log.RunLog`, in the controller's feature
-units (``meta["feature_scale"]`` px each, DESIGN.md §3), the units in which the proofs hold;
+units (``meta["feature_scale"]`` px each, design notes §3), the units in which the proofs hold;
 error bounds are also given in pixels. Notation (controller units):
 
 - ``e = (xi_true - xi_d) / feature_scale``: the *true* feature error (the physical error, as in

@@ -6,7 +6,7 @@ r"""The passivity-based kinematic visual controller, eqs. (10) and (34).
           J^\# = W^{-1} J^T (J W^{-1} J^T)^{-1}.
 
 Features enter the controller in *controller units* of ``feature_scale`` pixels
-(DESIGN.md §3): the feedback term scales with ``|J|^2``, and in raw pixels (``|J|`` of a few
+(the design notes, §3): the feedback term scales with ``|J|^2``, and in raw pixels (``|J|`` of a few
 hundred) the paper's ``k_i = 0.15`` makes the sampled loop diverge. ``J# J_o`` and the
 null-space projector do not depend on the unit.
 

@@ -5,7 +5,7 @@ at once and refuse what a user could not have meant, before any robot is built:
 
 - **Features**: ``target.xi0`` and ``target.xi_d`` inside the image (coordinates centred on
   the principal point, ``|u| <= width / 2``, ``|v| <= height / 2``) and ordered: sphere 1 is
-  the upper one and ``v`` grows upwards (DESIGN.md section 2), so ``v1 > v2``.
+  the upper one and ``v`` grows upwards (design notes §2), so ``v1 > v2``.
 - **Rates**: the plant step is shorter than the run, the control period and the camera
   period; the control period is a whole number of plant steps (within
   :data:`RATE_TOLERANCE`); the log and laser rates do not exceed the control rate. The loop

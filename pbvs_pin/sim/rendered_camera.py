@@ -35,7 +35,7 @@ from pbvs_pin.sim.detection import Detector
 from pbvs_pin.sim.render import SceneRenderer
 
 RENDER_STREAM = 21
-"""Second entry of the image-noise generator's seed ``[seed, RENDER_STREAM]`` (issue 21)."""
+"""Second entry of the image-noise generator's seed ``[seed, RENDER_STREAM]``."""
 
 
 class TruePlant(Protocol):

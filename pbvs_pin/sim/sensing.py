@@ -1,4 +1,4 @@
-r"""What the controller reads of the robot: encoders, wheel odometry and the laser (issue 9).
+r"""What the controller reads of the robot: encoders, wheel odometry and the laser.
 
 The loop never hands the plant's exact state to the controller. At every control step
 :meth:`Sensing.read` reads the robot as a real one is read, the same way on both plant engines
@@ -59,7 +59,7 @@ if TYPE_CHECKING:
     from pbvs_pin.sim.setup import Setup
 
 ENCODER_STREAM = 9
-"""Second entry of the encoder-noise generator's seed ``[seed, ENCODER_STREAM]`` (issue 9)."""
+"""Second entry of the encoder-noise generator's seed ``[seed, ENCODER_STREAM]``."""
 
 LASER_STREAM = 90
 """Second entry of the laser-noise generator's seed ``[seed, LASER_STREAM]``."""

@@ -4,7 +4,7 @@ A frame holds the image coordinates and apparent diameters of both spheres, meas
 true robot and target, and the encoder configuration at its timestamp. The controller only
 ever sees frames (after their latency) and encoders.
 
-The faults a real camera brings (issue 13), each off by default and drawn from a generator of
+The faults a real camera brings, each off by default and drawn from a generator of
 its own (seeded from the scenario's seed) so that the pixel noise of a run without faults is
 unchanged:
 
@@ -35,7 +35,7 @@ if TYPE_CHECKING:
     from pbvs_pin.sim.rendered_camera import RenderedCamera
 
 FAULT_STREAM = 13
-"""Second entry of the fault generator's seed ``[seed, FAULT_STREAM]`` (issue 13)."""
+"""Second entry of the fault generator's seed ``[seed, FAULT_STREAM]``."""
 
 
 @dataclass(frozen=True)

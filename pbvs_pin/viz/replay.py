@@ -6,6 +6,13 @@ current feature points, platform and target trails) and keys its moving parts at
 :data:`REPLAY_RATE` into one animation. The page is written from an offline scene
 (:func:`~pbvs_pin.viz.recorder.offline_visualizer`), so no meshcat server is needed to write it,
 and none to open it.
+
+What makes it readable (:mod:`pbvs_pin.viz.replay_page`): the page is titled with the robot
+and the experiment; a play/pause button, a time slider and a readout of the time and the
+largest feature error sit along the bottom; an inset draws the camera image with the current
+and the desired image points. Meshcat's endless floor grid is hidden and a floor just larger
+than the run's paths drawn instead, and the viewing camera stands back far enough to frame the
+platform and the target (:func:`follow_offset`).
 """
 
 from __future__ import annotations
@@ -24,17 +31,25 @@ from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.sections import RobotSection
 from pbvs_pin.sim.targets import centres_from
 from pbvs_pin.viz.animation import write_replay_html
-from pbvs_pin.viz.primitives import ROOT_PREFIX, set_camera_view, translation_pose
+from pbvs_pin.viz.primitives import ROOT_PREFIX, _material, set_camera_view, translation_pose
 from pbvs_pin.viz.recorder import offline_visualizer
+from pbvs_pin.viz.replay_page import ReplayOverlay, add_overlay
 from pbvs_pin.viz.run_scene import RunFacts, RunScene, two_sphere_points
 
 REPLAY_RATE = 10.0
 """Frames per second kept in a replay [Hz] (the log is downsampled to this)."""
 FOLLOW_PATH = f"{ROOT_PREFIX}/follow"
 """Meshcat path of the empty node the replay's viewing camera follows (animated)."""
-FOLLOW_VIEW = (-0.45, -0.6, 0.95)
-"""Viewing camera position relative to the followed point [m], close enough that the 5 cm
-target spheres are tens of pixels wide."""
+FOLLOW_VIEW = (-0.6, -0.75, 0.7)
+"""Viewing camera position relative to the followed point [m] when platform and target are
+close, near enough that the 5 cm target spheres are tens of pixels wide; it is stretched along
+the same direction to frame them when they are apart (:func:`follow_offset`)."""
+FLOOR_PATH = f"{ROOT_PREFIX}/floor"
+"""Meshcat path of the floor drawn under the run."""
+FLOOR_MARGIN = 1.5
+"""Floor beyond the run's paths on each side [m]."""
+FLOOR_COLOR = (0.78, 0.78, 0.74)
+"""Floor colour."""
 FOLLOW_HEIGHT = 0.3
 """Height of the followed point [m] (about the camera's and the target's)."""
 FOLLOW_SCRIPT = """<script>
@@ -167,27 +182,41 @@ def write_run_replay(
     tops = log["target"] + [0.0, 0.0, separation / 2]
     vis = offline_visualizer()
     run = RunScene(vis, robot, facts)
-    run.draw_trails([run.platform_point(q) for q in log["q"]], log["target"])
-    set_camera_view(vis, FOLLOW_VIEW)
+    platform = np.array([run.platform_point(q) for q in log["q"]])
+    run.draw_trails(platform, log["target"])
+    draw_floor(vis, np.vstack([platform[:, :2], log["target"][:, :2]]))
+    set_camera_view(vis, follow_offset(platform, log["target"]))
     last_seen = np.asarray(facts.desired_points, dtype=float)
-    frames = []
+    frames, points_px = [], []
     for k in keep:
         centres = centres_from(tops[k], separation)
         points = true_image_points(robot, log["q"][k], centres)
         last_seen = np.where(np.isfinite(points), points, last_seen)
+        points_px.append(robot.camera.to_pixel(last_seen))
         poses = run.poses(log["q"][k], centres, last_seen)
         poses[FOLLOW_PATH] = translation_pose(follow_point(run.platform_point(log["q"][k]),
                                                           log["target"][k]))  # fmt: skip
         frames.append(poses)
     out = write_replay_html(path, vis, times, lambda k, _t: frames[k], fps=rate)
     names = json.dumps(["meshcat", *FOLLOW_PATH.split("/")])
+    error = np.abs(log["xi"] - log["xi_d"])[keep]
+    overlay = ReplayOverlay(
+        title=f"{log.meta.get('robot', 'robot')} · {log.meta.get('scenario', 'run')}",
+        subtitle=str(log.meta.get("description", "")).split("\n")[0],
+        times=times,
+        error_px=np.where(np.all(np.isfinite(error), axis=1), np.max(error, axis=1), np.nan),
+        points_px=np.array(points_px),
+        desired_px=robot.camera.to_pixel(np.asarray(facts.desired_points, dtype=float)),
+        image_size=(robot.camera.width, robot.camera.height),
+    )
     html = out.read_text(encoding="utf-8")
     head, _, tail = html.rpartition("</body>")
     extra = FOLLOW_SCRIPT % names
     if eye_view:
         frames = json.dumps(_eye_view_frames(log, keep))
         extra += EYE_VIEW_SCRIPT % (frames, json.dumps(times.tolist()))
-    out.write_text(head + extra + tail, encoding="utf-8")
+    html = add_overlay(head + extra + tail, overlay)
+    out.write_text(html, encoding="utf-8")
     return out
 
 
@@ -203,6 +232,49 @@ def _eye_view_frames(log: RunLog, samples: np.ndarray) -> list[str]:
         _, jpeg = cv2.imencode(".jpg", cv2.cvtColor(half, cv2.COLOR_RGB2BGR))
         urls.append("data:image/jpeg;base64," + base64.b64encode(jpeg.tobytes()).decode())
     return urls
+
+
+def follow_offset(platform: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Viewing camera position relative to the followed point [m]. Shape (3,).
+
+    Along :data:`FOLLOW_VIEW`, at least as far as it, and far enough that the largest
+    platform-to-target distance of the run fits in the view (meshcat's camera sees 75 degrees
+    vertically: a span ``d`` fits at about ``0.8 d`` plus room for the robot).
+
+    Args:
+        platform: The platform point over the run [m]. Shape (N, 3).
+        target: The target over the run [m]. Shape (N, 3).
+    """
+    gap = np.linalg.norm(np.asarray(platform)[:, :2] - np.asarray(target)[:, :2], axis=1)
+    base = np.asarray(FOLLOW_VIEW, dtype=float)
+    distance = max(float(np.linalg.norm(base)), 0.8 * float(np.max(gap, initial=0.0)) + 0.5)
+    return base / np.linalg.norm(base) * distance
+
+
+def draw_floor(vis, xy: np.ndarray) -> None:
+    """Hide meshcat's endless grid and draw a floor under the run, with a 1 m grid on it.
+
+    Args:
+        vis: Visualizer.
+        xy: Every point the run visits in the plane [m]. Shape (N, 2).
+    """
+    import meshcat.geometry as mg
+
+    vis["/Grid"].set_property("visible", False)
+    low = np.floor(np.min(xy, axis=0) - FLOOR_MARGIN)
+    high = np.ceil(np.max(xy, axis=0) + FLOOR_MARGIN)
+    size = high - low
+    vis[FLOOR_PATH].set_object(mg.Box([*size, 0.002]), _material(FLOOR_COLOR, kind="basic"))
+    vis[FLOOR_PATH].set_transform(translation_pose([*(low + size / 2), -0.002]))
+    lines = []
+    for x in np.arange(low[0], high[0] + 0.5):
+        lines += [[x, low[1], 0.0005], [x, high[1], 0.0005]]
+    for y in np.arange(low[1], high[1] + 0.5):
+        lines += [[low[0], y, 0.0005], [high[0], y, 0.0005]]
+    grid = np.asarray(lines, dtype=np.float32).T
+    vis[f"{FLOOR_PATH}_grid"].set_object(
+        mg.LineSegments(mg.PointsGeometry(grid), mg.LineBasicMaterial(color=0x999990))
+    )
 
 
 def follow_point(platform: np.ndarray, target: np.ndarray) -> np.ndarray:
