@@ -148,9 +148,12 @@ def start_centres(robot, q, xi0, separation: float) -> np.ndarray:
 
 
 def run(experiment="experiment1", robot_name="pioneer_cyton", frames_late=1, duration=None,
-        seed=0):  # fmt: skip
-    """Run one experiment in this loop; return its time series (arrays, first axis time)."""
-    scenario = pbvs_pin.load_scenario(experiment)
+        seed=0, values=None):  # fmt: skip
+    """Run one experiment in this loop; return its time series (arrays, first axis time).
+
+    ``values`` replaces scenario keys (dotted names, as ``Scenario.with_values`` takes them).
+    """
+    scenario = pbvs_pin.load_scenario(experiment).with_values(**(values or {}))
     robot = pbvs_pin.load_robot(robot_name)
     duration = scenario.duration if duration is None else duration  # [s]
     # the controller: the scenario's settings, the stand-in robot's loop lags, a 0.5 s hold
