@@ -158,6 +158,9 @@ class CameraIntrinsics:
         Returns:
             ``[u, v]`` [px], origin at the image centre, ``u`` left, ``v`` up. Shape (..., 2).
         """
+        pixel = as_numbers("pixel", pixel)
+        if pixel.ndim == 0 or pixel.shape[-1] != 2:
+            raise ShapeError("pixel", (*pixel.shape[:-1], 2), pixel.shape)
         return self.to_pixel(pixel)  # (u, v) -> (W/2 - u, H/2 - v) is its own inverse
 
     def in_image(self, xi: npt.ArrayLike, margin: float = 0.0) -> bool:

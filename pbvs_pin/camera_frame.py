@@ -24,6 +24,8 @@ import numpy as np
 import numpy.typing as npt
 
 from pbvs_pin.camera import CameraIntrinsics
+from pbvs_pin.exceptions import ShapeError
+from pbvs_pin.validation import as_number, as_numbers, as_rows
 
 
 @dataclass(frozen=True)
@@ -41,6 +43,26 @@ class CameraFrame:
     points: np.ndarray | None = None
     depths: np.ndarray | None = None
 
+    def __post_init__(self) -> None:
+        """Convert the time to a float and the points and depths to float arrays.
+
+        NaN points or depths are kept: the controller counts such a frame as not visible.
+
+        Raises:
+            WrongType: If a value is not numbers.
+            NonFiniteValue: If the capture time is not finite.
+            ShapeError: If the points are not (k, 2) or the depths not (k,).
+        """
+        object.__setattr__(self, "capture_time", as_number("capture_time", self.capture_time))
+        if self.points is None and self.depths is None:
+            return
+        points = as_rows("points", self.points, 2, finite=False)
+        depths = as_numbers("depths", self.depths)
+        if depths.shape != (len(points),):
+            raise ShapeError("depths", (len(points),), depths.shape)
+        object.__setattr__(self, "points", points)
+        object.__setattr__(self, "depths", depths)
+
     @property
     def visible(self) -> bool:
         """Whether the frame shows the target (it has points)."""
@@ -51,14 +73,12 @@ class CameraFrame:
         cls, capture_time: float, points: npt.ArrayLike, depths: npt.ArrayLike
     ) -> CameraFrame:
         """A frame showing the target at ``points`` [px] (k, 2) and ``depths`` [m] (k,)."""
-        return cls(
-            float(capture_time), np.asarray(points, dtype=float), np.asarray(depths, dtype=float)
-        )
+        return cls(capture_time, points, depths)
 
     @classmethod
     def not_visible(cls, capture_time: float) -> CameraFrame:
         """A frame taken at ``capture_time`` [s] in which the target is not visible."""
-        return cls(float(capture_time))
+        return cls(capture_time)
 
     @classmethod
     def from_diameters(
@@ -78,5 +98,6 @@ class CameraFrame:
             camera: The camera's intrinsics (its focal length ``f`` [px]).
             sphere_diameter: The spheres' true diameter ``D`` [m].
         """
-        diameters = np.asarray(diameters_px, dtype=float)
+        diameters = as_numbers("diameters_px", diameters_px)
+        sphere_diameter = as_number("sphere_diameter", sphere_diameter)
         return cls.seen(capture_time, points, camera.focal_px * sphere_diameter / diameters)

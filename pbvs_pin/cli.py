@@ -269,6 +269,11 @@ def _view(args: argparse.Namespace) -> None:
     view_robot(load_robot_argument(args.robot), Path(args.html) if args.html else None)
 
 
+def _zoo(args: argparse.Namespace) -> None:
+    """``pbvs-pin zoo``: :func:`pbvs_pin.zoo.command`."""
+    zoo_command(args)
+
+
 def _analyze(args: argparse.Namespace) -> None:
     """Passivity and L2-gain figures of a run."""
     from pbvs_pin.analysis import analyze_run
@@ -481,8 +486,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sweep.set_defaults(handler=_sweep)
     zoo = commands.add_parser("zoo", help="the four experiments on every robot file of a folder")
-    zoo_arguments(zoo)
-    zoo.set_defaults(handler=zoo_command)
+    zoo_arguments(zoo, output_option)
+    zoo.set_defaults(handler=_zoo)
     return parser
 
 

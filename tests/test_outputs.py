@@ -26,7 +26,8 @@ WRITING_WORDS = ("write", "folder", "output", "file")
 listed in READ_OPTIONS)."""
 
 READ_OPTIONS = {("analyze", "log"), ("sweep", "spec"), ("run", "scenario"), ("run", "robot"),
-                ("info", "robot"), ("view", "robot"), ("reproduce", "robots")}  # fmt: skip
+                ("info", "robot"), ("view", "robot"), ("reproduce", "robots"),
+                ("zoo", "folder")}  # fmt: skip
 """Options whose help mentions files but which name inputs: read, never written."""
 
 
@@ -43,7 +44,7 @@ def _declared() -> list[tuple[str, str, Output]]:
 
 def test_the_commands_that_write_are_found():
     writers = {name for name, _, _ in _declared()}
-    assert writers == {"run", "reproduce", "view", "analyze", "sweep"}
+    assert writers == {"run", "reproduce", "view", "analyze", "sweep", "zoo"}
 
 
 def test_every_writing_option_is_declared():

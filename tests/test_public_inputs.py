@@ -30,8 +30,15 @@ from pbvs_pin import (
     TwoSphereFeatures,
 )
 
-EXCLUDED = {"Controller", "ServoCommand"}
-"""The controller's run-time API: being replaced by the lead, fuzzed there."""
+EXCLUDED = {"Controller", "ServoCommand", "Detector", "ColourDetector"}
+"""The controller's step is fuzzed in tests/test_controller.py (wrong shapes, NaN, time, stale
+and future frames, 400 seeded random steps). The detectors take camera images; a wrong kind of
+image is not converted at their door yet (an open item)."""
+
+SECTIONS_BUILT = {"CameraSection", "CompensationSection", "ControllerSection", "EstimatorSection",
+                  "SecondarySection", "TargetSection"}  # fmt: skip
+"""A scenario's typed tables: each key's value is checked when a section is built and refused
+with its key named by ``load_scenario`` and ``with_values`` (tests/test_bad_scenarios.py)."""
 
 CONVERTED = ("ArrayLike", "float", "int", "ndarray", "SE3", "Path")
 """Annotations of the arguments converted at the door: numbers, vectors, poses, paths."""
@@ -91,6 +98,22 @@ CALLS = {
                                                   "min_depth": 0.0}),
     "CameraIntrinsics.to_pixel": (lambda r: CameraIntrinsics().to_pixel,
                                   lambda r: {"xi": [1.0, 2.0]}),
+    "CameraIntrinsics.from_pixel": (lambda r: CameraIntrinsics().from_pixel,
+                                    lambda r: {"pixel": [1.0, 2.0]}),
+    "CameraFrame": (lambda r: pbvs_pin.CameraFrame, lambda r: {"capture_time": 1.0,
+                                                              "points": POINTS,
+                                                              "depths": [1.0, 1.0]}),
+    "CameraFrame.seen": (lambda r: pbvs_pin.CameraFrame.seen,
+                         lambda r: {"capture_time": 1.0, "points": POINTS, "depths": [1.0, 1.0]}),
+    "CameraFrame.not_visible": (lambda r: pbvs_pin.CameraFrame.not_visible,
+                                lambda r: {"capture_time": 1.0}),
+    "CameraFrame.from_diameters": (lambda r: pbvs_pin.CameraFrame.from_diameters,
+                                   lambda r: {"capture_time": 1.0, "points": POINTS,
+                                              "diameters_px": [30.0, 30.0],
+                                              "camera": CameraIntrinsics(),
+                                              "sphere_diameter": 0.05}),
+    "ControllerSettings": (lambda r: pbvs_pin.ControllerSettings,
+                           lambda r: {"history": 2.0, "servo_time_constants": [0.2] * 5}),
     "DifferentialDrive": (lambda r: DifferentialDrive,
                           lambda r: {"wheel_radius": 0.1, "track": 0.4, "max_wheel_speed": 6.0,
                                      "track_factor": 1.0}),
@@ -205,7 +228,7 @@ def test_every_public_callable_taking_numbers_vectors_poses_or_paths_has_a_call(
     public = _public_callables()
     converting = {name for name, call in public.items() if _converted(call)}
     assert len(public) > 60 and len(converting) > 40  # the enumeration itself works
-    assert sorted(converting - set(CALLS) - UNCHECKED - BUILT) == []
+    assert sorted(converting - set(CALLS) - UNCHECKED - BUILT - SECTIONS_BUILT) == []
 
 
 def _converted(call) -> list[str]:

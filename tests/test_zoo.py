@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pbvs_pin.cli import main
 from pbvs_pin.exceptions import OutputError
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
@@ -23,7 +24,6 @@ from pbvs_pin.zoo import (
     PAGE_END,
     errors,
     load_zoo,
-    main,
     run_zoo,
     write_block,
     zoo_table,
@@ -102,7 +102,8 @@ def test_command_line_reuses_the_runs_and_writes_the_page(short_zoo, tmp_path, c
     folder, out, _ = short_zoo
     page = tmp_path / "zoo.rst"
     page.write_text(f"{PAGE_BEGIN}\n{PAGE_END}\n")
-    main([str(folder), "--out", str(out), "--page", str(page), "--engines", "pinocchio",
-          "--experiments", "experiment1", "--duration", str(DURATION)])  # fmt: skip
+    status = main(["zoo", str(folder), "--out", str(out), "--page", str(page), "--engines",
+                   "pinocchio", "--experiments", "experiment1", "--duration", str(DURATION)])  # fmt: skip
+    assert status == 0
     assert "3 runs in" in capsys.readouterr().out
     assert "stretch_re1" in page.read_text() and "no_such_link" in page.read_text()

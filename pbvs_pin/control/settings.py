@@ -36,6 +36,7 @@ from pbvs_pin.sim.sections import (
     SecondarySection,
     TargetSection,
 )
+from pbvs_pin.validation import as_number, as_numbers, positive_number
 
 if TYPE_CHECKING:
     from pbvs_pin.sim.scenario import Scenario
@@ -72,6 +73,21 @@ class ControllerSettings:
     servo_time_constants: tuple[float, ...] | None = None
     history: float = HISTORY_SECONDS
     source: str = "ControllerSettings"
+
+    def __post_init__(self) -> None:
+        """Convert ``history`` and ``servo_time_constants``; they must be positive.
+
+        Raises:
+            WrongType: If one is not numbers.
+            GainError: If one is not positive, naming it.
+        """
+        object.__setattr__(self, "history", positive_number("history", as_number(
+            "history", self.history)))  # fmt: skip
+        if self.servo_time_constants is not None:
+            lags = as_numbers("servo_time_constants", self.servo_time_constants).ravel()
+            for lag in lags:
+                positive_number("servo_time_constants", lag)
+            object.__setattr__(self, "servo_time_constants", tuple(lags.tolist()))
 
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> ControllerSettings:

@@ -22,7 +22,7 @@ from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.render import SceneRenderer
 from pbvs_pin.sim.scenario import OBSTACLE_KINDS
 from pbvs_pin.sim.targets import centres_from
-from pbvs_pin.viz.replay import log_facts, log_robot
+from pbvs_pin.viz.run_scene import log_facts, log_robot
 
 DETECTION_BGR = (255, 255, 255)
 DESIRED_BGR = (255, 255, 0)

@@ -47,7 +47,7 @@ def plot_run(
         folder: Output folder (created).
         footprint: Platform length and width [m], for the stroboscopic plot.
     """
-    from pbvs_pin.viz.replay import log_robot
+    from pbvs_pin.viz.run_scene import log_robot
 
     name = run_title(log)
     folder = Path(folder)

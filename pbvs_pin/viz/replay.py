@@ -23,18 +23,15 @@ from pathlib import Path
 
 import numpy as np
 
-from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.catalogue import build_robot
 from pbvs_pin.exceptions import PointBehindCamera
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog
-from pbvs_pin.sim.sections import RobotSection
 from pbvs_pin.sim.targets import centres_from
 from pbvs_pin.viz.animation import write_replay_html
 from pbvs_pin.viz.primitives import ROOT_PREFIX, _material, set_camera_view, translation_pose
 from pbvs_pin.viz.recorder import offline_visualizer
 from pbvs_pin.viz.replay_page import ReplayOverlay, add_overlay
-from pbvs_pin.viz.run_scene import RunFacts, RunScene, two_sphere_points
+from pbvs_pin.viz.run_scene import RunScene, log_facts, log_robot
 
 REPLAY_RATE = 10.0
 """Frames per second kept in a replay [Hz] (the log is downsampled to this)."""
@@ -75,31 +72,6 @@ FOLLOW_SCRIPT = """<script>
 </script>
 </body>"""
 """Script appended to the replay page: the viewing camera follows :data:`FOLLOW_PATH`."""
-
-
-def log_robot(log: RunLog) -> MobileManipulator:
-    """The robot a log was recorded with (its ``[robot]`` table, or name, and intrinsics).
-
-    Raises:
-        RobotNotFound: If the logged robot name is no longer known.
-        ScenarioError: If the logged ``[robot]`` table no longer builds.
-    """
-    camera = log.meta["camera"]
-    intrinsics = CameraIntrinsics(camera["focal_px"], camera["width"], camera["height"])
-    table = log.meta.get("robot_table")
-    if table:
-        return RobotSection.from_toml(table, log.meta.get("source", "")).build(intrinsics)
-    return build_robot(log.meta["robot"], intrinsics)
-
-
-def log_facts(log: RunLog) -> RunFacts:
-    """Target size, desired features and obstacles of a logged run."""
-    return RunFacts(
-        target_diameter=log.meta["target_diameter"],
-        target_separation=log.meta["target_separation"],
-        desired_points=two_sphere_points(log["xi_d"][0]),
-        obstacles=tuple(log.meta.get("obstacles", [])),
-    )
 
 
 def true_image_points(robot: MobileManipulator, q: np.ndarray, centres: np.ndarray) -> np.ndarray:

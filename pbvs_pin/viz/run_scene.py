@@ -15,6 +15,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from pbvs_pin.camera import CameraIntrinsics
+from pbvs_pin.catalogue import build_robot
+from pbvs_pin.sim.log import RunLog
+from pbvs_pin.sim.sections import RobotSection
 from pbvs_pin.viz.frustum import (
     add_camera_frustum,
     add_camera_triad,
@@ -257,3 +261,28 @@ class RunScene:
             points = np.asarray(points, dtype=float).reshape(-1, 3)
             if len(points) >= 2:
                 add_trail(self.vis, points, colour, path=path)
+
+
+def log_robot(log: RunLog) -> MobileManipulator:
+    """The robot a log was recorded with (its ``[robot]`` table, or name, and intrinsics).
+
+    Raises:
+        RobotNotFound: If the logged robot name is no longer known.
+        ScenarioError: If the logged ``[robot]`` table no longer builds.
+    """
+    camera = log.meta["camera"]
+    intrinsics = CameraIntrinsics(camera["focal_px"], camera["width"], camera["height"])
+    table = log.meta.get("robot_table")
+    if table:
+        return RobotSection.from_toml(table, log.meta.get("source", "")).build(intrinsics)
+    return build_robot(log.meta["robot"], intrinsics)
+
+
+def log_facts(log: RunLog) -> RunFacts:
+    """Target size, desired features and obstacles of a logged run."""
+    return RunFacts(
+        target_diameter=log.meta["target_diameter"],
+        target_separation=log.meta["target_separation"],
+        desired_points=two_sphere_points(log["xi_d"][0]),
+        obstacles=tuple(log.meta.get("obstacles", [])),
+    )
