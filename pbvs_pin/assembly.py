@@ -173,14 +173,19 @@ def _parse_strictly(path: Path) -> etree._Element:
     Raises:
         UrdfError: If the file cannot be read or is not well-formed XML.
     """
+    parser = etree.XMLParser(recover=True)  # its own error log: this file's errors only
     try:
-        return etree.parse(str(path), etree.XMLParser(recover=False)).getroot()
-    except etree.XMLSyntaxError as err:
-        if all(entry.type_name == UNDECLARED_PREFIX for entry in err.error_log):
-            return etree.parse(str(path), etree.XMLParser(recover=True)).getroot()
-        raise UrdfError(str(path), f"not well-formed XML ({err})") from err
-    except OSError as err:
+        root = etree.parse(str(path), parser).getroot()
+    except (OSError, etree.XMLSyntaxError) as err:
         raise UrdfError(str(path), f"cannot be read ({err})") from err
+    faults = [
+        entry for entry in parser.error_log
+        if entry.level >= etree.ErrorLevels.ERROR and entry.type_name != UNDECLARED_PREFIX
+    ]  # fmt: skip
+    if root is None or faults:
+        first = faults[0] if faults else "no root element"
+        raise UrdfError(str(path), f"not well-formed XML ({first})")
+    return root
 
 
 def load_urdf(source: str | Path, repair_inertia: bool = False) -> UrdfSource:

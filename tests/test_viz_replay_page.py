@@ -83,6 +83,9 @@ def test_play_pause_and_slider_are_visible_and_drive_the_animation(page):
     assert slider["width"] > 200
     playing = page.page.evaluate("() => viewer.animator.playing")
     page.page.click("#pbvs-play")
+    page.page.wait_for_function(  # the click acts through the page's event loop
+        "(expected) => viewer.animator.playing === expected", arg=not playing, timeout=5000
+    )
     assert page.page.evaluate("() => viewer.animator.playing") is (not playing)
     assert page.page.inner_text("#pbvs-play") == ("Play" if playing else "Pause")
     if not playing:
