@@ -105,3 +105,13 @@ def all_finite(a: np.ndarray) -> bool:
         if not np.isfinite(x):
             return False
     return True
+
+
+@njit(cache=True, inline="always")
+def cut(buffer: np.ndarray, start: int, count: int) -> tuple[np.ndarray, int]:
+    """The ``count`` entries of ``buffer`` from ``start``, and the offset after them.
+
+    Names the slots of a packed buffer in turn (:mod:`pbvs_pin.control.layout`,
+    :func:`pbvs_pin.servo.servo_constants`).
+    """
+    return buffer[start : start + count], start + count

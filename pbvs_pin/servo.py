@@ -56,6 +56,7 @@ from numba import njit
 
 from pbvs_pin.dynamics import DynamicTerms, actuated_terms, rigid_body_terms
 from pbvs_pin.exceptions import GainError, UrdfError
+from pbvs_pin.linalg import cut
 from pbvs_pin.validation import as_number, as_numbers
 
 if TYPE_CHECKING:
@@ -354,27 +355,21 @@ def pack_servos(
 
 
 @njit(cache=True, inline="always")
-def _cut(buffer: np.ndarray, start: int, count: int) -> tuple[np.ndarray, int]:
-    """The ``count`` entries of ``buffer`` from ``start``, and the offset after them."""
-    return buffer[start : start + count], start + count
-
-
-@njit(cache=True, inline="always")
 def servo_constants(params: np.ndarray, indices: np.ndarray) -> ServoConstants:
     """Named views of :func:`pack_servos`' buffers, cut in :class:`ServoConstants`' order."""
     n, nv, k = indices[0], indices[1], indices[2]
-    inverse_time_constants, a = _cut(params, 0, n)
-    damping, a = _cut(params, a, n)
-    friction, a = _cut(params, a, n)
-    effort, a = _cut(params, a, n)
-    speed_limits, a = _cut(params, a, n)
-    gravity_weight, a = _cut(params, a, n)
-    integral_rates, a = _cut(params, a, n)
-    lower, a = _cut(params, a, k)
-    upper, a = _cut(params, a, k)
-    selection, a = _cut(params, a, nv * n)
-    stop_index, b = _cut(indices, 3, k)
-    stop_q_index, b = _cut(indices, b, k)
+    inverse_time_constants, a = cut(params, 0, n)
+    damping, a = cut(params, a, n)
+    friction, a = cut(params, a, n)
+    effort, a = cut(params, a, n)
+    speed_limits, a = cut(params, a, n)
+    gravity_weight, a = cut(params, a, n)
+    integral_rates, a = cut(params, a, n)
+    lower, a = cut(params, a, k)
+    upper, a = cut(params, a, k)
+    selection, a = cut(params, a, nv * n)
+    stop_index, b = cut(indices, 3, k)
+    stop_q_index, b = cut(indices, b, k)
     return ServoConstants(
         inverse_time_constants, damping, friction, effort, speed_limits, gravity_weight,
         integral_rates, lower, upper, selection.reshape((nv, n)), params[a], params[a + 1],

@@ -21,6 +21,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from pbvs_pin.linalg import cut
+
 
 class Sizes(NamedTuple):
     """The sizes, first in ``indices``."""
@@ -214,9 +216,9 @@ def sizes(indices: np.ndarray) -> Sizes:
 def index_views(indices: np.ndarray) -> Indices:
     """Views of the constant integers in ``indices``."""
     size = sizes(indices)
-    rows, a = _cut(indices, SIZES, size.r)
-    arm_q_indices, a = _cut(indices, a, size.n_arm)
-    arm_continuous, a = _cut(indices, a, size.n_arm)
+    rows, a = cut(indices, SIZES, size.r)
+    arm_q_indices, a = cut(indices, a, size.n_arm)
+    arm_continuous, a = cut(indices, a, size.n_arm)
     return Indices(rows=rows, arm_q_indices=arm_q_indices, arm_continuous=arm_continuous)
 
 
@@ -231,23 +233,23 @@ def parameter_size(indices: np.ndarray) -> int:
 def parameter_views(params: np.ndarray, indices: np.ndarray) -> Parameters:
     """Views of the constant floats in ``params`` (shape (parameter_size(indices),))."""
     n, r, nv, n_arm = sizes(indices)
-    xi_d, a = _cut(params, 0, r)
-    k, a = _cut(params, a, r)
-    k1, a = _cut(params, a, n)
-    k2, a = _cut(params, a, n)
-    velocity_limits, a = _cut(params, a, n)
-    pseudo_inverse_damping, a = _cut(params, a, 2)
-    gain_per_mass, a = _cut(params, a, n)
-    gain_constant, a = _cut(params, a, n)
-    gravity_weight, a = _cut(params, a, n)
-    compensated, a = _cut(params, a, n)
-    k_d, a = _cut(params, a, n)
-    weight_inverse, a = _cut(params, a, n * n)
-    posture_target, a = _cut(params, a, n_arm)
-    lower, a = _cut(params, a, n_arm)
-    upper, a = _cut(params, a, n_arm)
-    selection, a = _cut(params, a, nv * n)
-    settings_block, a = _cut(params, a, SETTINGS)
+    xi_d, a = cut(params, 0, r)
+    k, a = cut(params, a, r)
+    k1, a = cut(params, a, n)
+    k2, a = cut(params, a, n)
+    velocity_limits, a = cut(params, a, n)
+    pseudo_inverse_damping, a = cut(params, a, 2)
+    gain_per_mass, a = cut(params, a, n)
+    gain_constant, a = cut(params, a, n)
+    gravity_weight, a = cut(params, a, n)
+    compensated, a = cut(params, a, n)
+    k_d, a = cut(params, a, n)
+    weight_inverse, a = cut(params, a, n * n)
+    posture_target, a = cut(params, a, n_arm)
+    lower, a = cut(params, a, n_arm)
+    upper, a = cut(params, a, n_arm)
+    selection, a = cut(params, a, nv * n)
+    settings_block, a = cut(params, a, SETTINGS)
     return Parameters(
         xi_d=xi_d,
         k=k,
@@ -307,18 +309,18 @@ def state_size(indices: np.ndarray) -> int:
 def state_views(state: np.ndarray, indices: np.ndarray) -> State:
     """Views of the memory and outputs in ``state`` (shape (state_size(indices),))."""
     n, r, _, _ = sizes(indices)
-    u_previous, a = _cut(state, 0, n)
-    u_dot, a = _cut(state, a, n)
-    impedance_velocity, a = _cut(state, a, 2)
-    u, a = _cut(state, a, n)
-    v_ref, a = _cut(state, a, n)
-    nu, a = _cut(state, a, n)
-    feedforward, a = _cut(state, a, n)
-    null_space, a = _cut(state, a, n)
-    xi, a = _cut(state, a, r)
-    jacobian, a = _cut(state, a, r * n)
-    object_jacobian, a = _cut(state, a, r * 3)
-    scalars, a = _cut(state, a, STEP_SCALARS)
+    u_previous, a = cut(state, 0, n)
+    u_dot, a = cut(state, a, n)
+    impedance_velocity, a = cut(state, a, 2)
+    u, a = cut(state, a, n)
+    v_ref, a = cut(state, a, n)
+    nu, a = cut(state, a, n)
+    feedforward, a = cut(state, a, n)
+    null_space, a = cut(state, a, n)
+    xi, a = cut(state, a, r)
+    jacobian, a = cut(state, a, r * n)
+    object_jacobian, a = cut(state, a, r * 3)
+    scalars, a = cut(state, a, STEP_SCALARS)
     return State(
         u_previous=u_previous,
         u_dot=u_dot,
@@ -364,9 +366,3 @@ def store(block: np.ndarray, values: StepScalars) -> None:
 def slot(record: type[NamedTuple], name: str) -> int:
     """Position of field ``name`` of a scalar block (:class:`Settings`, :class:`StepScalars`)."""
     return record._fields.index(name)
-
-
-@njit(cache=True, inline="always")
-def _cut(buffer: np.ndarray, start: int, count: int) -> tuple[np.ndarray, int]:
-    """The ``count`` entries of ``buffer`` from ``start``, and the offset after them."""
-    return buffer[start : start + count], start + count
