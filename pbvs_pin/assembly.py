@@ -176,7 +176,9 @@ def _parse_strictly(path: Path) -> etree._Element:
     parser = etree.XMLParser(recover=True)  # its own error log: this file's errors only
     try:
         root = etree.parse(str(path), parser).getroot()
-    except (OSError, etree.XMLSyntaxError) as err:
+    except etree.XMLSyntaxError as err:
+        raise UrdfError(str(path), f"not well-formed XML ({err})") from err
+    except OSError as err:
         raise UrdfError(str(path), f"cannot be read ({err})") from err
     faults = [
         entry for entry in parser.error_log
