@@ -7,7 +7,7 @@ Run: ``python benchmarks/control_step.py``. Prints, per robot, the median time o
 control step (kinematic controller, eq. 34, plus dynamic compensation, eq. 20) and of the
 Pinocchio calls that step makes (joint Jacobians, camera frame placement and Jacobian, CRBA,
 nonlinear effects, gravity), both measured in this run, and their ratio; where the step's time
-goes (Pinocchio, Python glue, passing the 15 arguments to compiled code, the compiled
+goes (Pinocchio, Python glue, passing the 18 arguments to compiled code, the compiled
 arithmetic) and the ratio it would have with no arithmetic at all (its floor); then the
 real-time factor of a closed-loop simulation with a 1 kHz controller on the reference robot, its
 cost per simulated second against the number of arm joints (a Panda on the reference platform
@@ -62,8 +62,8 @@ def _interleaved(*functions, repeats: int = REPEATS) -> tuple[float, ...]:
 
 
 @njit
-def _no_op(a, b, c, d, e, f, g, h, i, j, k, dt, params, indices, state) -> None:
-    """A compiled call that does nothing with the fused step's 15 arguments."""
+def _no_op(a, b, c, d, e, f, g, h, i, j, k, m, n, o, dt, params, indices, state) -> None:
+    """A compiled call that does nothing with the fused step's 18 arguments."""
 
 
 def control_step_calls(
@@ -94,7 +94,7 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, flo
     Returns the step, its Pinocchio calls, their median ratio, the compiled call alone and a
     compiled call that does nothing with the same arguments. The difference step - Pinocchio
     calls - compiled call is the Python glue; compiled call - no-op is the compiled arithmetic;
-    the no-op is the price of calling compiled code with the step's 15 arguments.
+    the no-op is the price of calling compiled code with the step's 18 arguments.
     """
     scenario = load_scenario("experiment1").with_values(**{"robot.name": robot_name})
     setup = build(scenario)
@@ -112,7 +112,6 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, flo
     laser, target_velocity = np.array([np.inf, 0.0]), np.zeros(3)
 
     def step() -> None:
-        fused.place_camera(q)
         fused.step(q, v, measurement, target_velocity, laser, dt)
 
     model, data = setup.model.model, setup.model.data
@@ -125,9 +124,10 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, flo
     step()
     arguments = (
         pin.getFrameJacobian(model, data, frame, pin.LOCAL).copy(),
-        data.oMf[frame].rotation.copy(), data.M.copy(), data.nle.copy(), data.g.copy(), q, v,
-        measurement.points, measurement.depths, target_velocity, laser, dt, fused.params,
-        fused.indices, fused.state,
+        data.oMf[frame].rotation.copy(), data.oMf[frame].translation.copy(), data.M.copy(),
+        data.nle.copy(), data.g.copy(), q, v, measurement.points, measurement.depths,
+        np.zeros((0, 3)), float("nan"), target_velocity, laser, dt, fused.params, fused.indices,
+        fused.state,
     )  # fmt: skip
 
     def compiled() -> None:

@@ -133,7 +133,7 @@ class CameraIntrinsics:
         """
         xi = as_rows("xi", xi, 2)
         depths = as_array("depths", depths, (len(xi),))
-        return np.column_stack([-xi * depths[:, None] / self.focal_px, depths])
+        return back_project_points(xi, depths, self.focal_px)
 
     def to_pixel(self, xi: npt.ArrayLike) -> np.ndarray:
         """Image coordinates ``[u, v]`` to pixel ``[col, row]``. Shape (..., 2).
@@ -280,6 +280,19 @@ def point_interaction_matrix(focal_px: float, xi: npt.ArrayLike, depth: float) -
     points = as_array("xi", xi, (2,)).reshape(1, 2)
     depth, focal_px = as_number("depth", depth), as_number("focal_px", focal_px)
     return point_jacobians(points, np.array([depth]), focal_px)[0]
+
+
+def back_project_points(xi: np.ndarray, depths: np.ndarray, focal: float) -> np.ndarray:
+    """:meth:`CameraIntrinsics.back_project` for float arrays of shapes (k, 2) and (k,).
+
+    Returns:
+        ``[x, y, z]`` in the optical frame [m]. Shape (k, 3).
+    """
+    in_camera = np.empty((len(depths), 3))
+    np.multiply(-xi, depths[:, None], out=in_camera[:, :2])
+    in_camera[:, :2] /= focal
+    in_camera[:, 2] = depths
+    return in_camera
 
 
 @njit(cache=True, error_model="numpy")

@@ -206,9 +206,7 @@ class Controller:
         self.compensator = compensator(settings, model)
         self.objectives = secondary_objectives(settings, model, self.posture_target)
         spec = settings.estimator
-        self.tracker = TargetTracker(
-            model, spec.filter(), spec.predict, spec.hold, spec.smoothing
-        )
+        self.tracker = TargetTracker(model, spec.filter(), spec.predict, spec.hold, spec.smoothing)
         self.history.clear()
         self.fused = None
         if FusedControlStep.supports(self.law, self.objectives):
@@ -432,17 +430,21 @@ class Controller:
 
         The compiled step when it applies and the target is seen; else the modular classes.
         """
-        fused = self.fused
+        fused, tracker = self.fused, self.tracker
         if fused is not None:
-            placement = fused.place_camera(q)  # the prediction's camera pose, and the step's
-            measurement = self.tracker.current(t, q, velocity, placement)
+            measurement = tracker.choose(t)
             if measurement is not None:
                 self._diagnostics = None
-                u, v_ref, v2 = fused.step(q, v, measurement, velocity, self.laser, dt)
+                predict_from = None
+                if tracker.predicting:
+                    predict_from = (tracker.world, t - tracker.capture_time)
+                u, v_ref, v2 = fused.step(q, v, measurement, velocity, self.laser, dt, predict_from)
+                tracker.used = fused.predicted if tracker.predicting else measurement
                 return u, v_ref, v2, fused.views.xi - self.xi_d, True
+            tracker.used = None
             fused.restart_derivative()  # the command derivative restarts after a loss
         else:
-            measurement = self.tracker.current(t, q, velocity)
+            measurement = tracker.current(t, q, velocity)
         output, jacobians = self._modular(q, measurement, velocity, dt)
         self._diagnostics = (output, jacobians)
         v_ref, v2 = self.compensator.step(q, v, output.u, dt)

@@ -45,8 +45,11 @@ class EncoderHistory:
         """Time of the oldest reading still held [s]; -inf before the first."""
         if self.count == 0:
             return -np.inf
-        size = self.times.size
-        return self.times[self.count % size] if self.count > size else self.times[0]
+        return self.times[self._oldest_slot()]
+
+    def _oldest_slot(self) -> int:
+        """The slot of the oldest reading held (with at least one recorded)."""
+        return self.count % self.times.size if self.count > self.times.size else 0
 
     def record(self, t: float, q: np.ndarray) -> None:
         """Append the reading ``q`` (shape (nq,)) taken at ``t`` [s], later than the newest."""
@@ -68,21 +71,31 @@ class EncoderHistory:
         """
         if self.count == 0:
             return None
-        size = self.times.size
-        newest = (self.count - 1) % size
-        # the readings in time order: slots newest+1 .. size-1, then 0 .. newest
-        order = np.roll(np.arange(size), -(newest + 1)) if self.count > size else None
-        times = self.times[order] if order is not None else self.times[: self.count]
-        index = int(np.searchsorted(times, t - TIME_TOLERANCE))
-        if index == times.size:
+        slot = self._slot_at_or_after(t - TIME_TOLERANCE)
+        if slot is None:
             return None
-        slot = int(order[index]) if order is not None else index
-        if abs(times[index] - t) <= TIME_TOLERANCE:
+        times = self.times
+        if abs(times[slot] - t) <= TIME_TOLERANCE:
             return self.configurations[slot].copy()
-        if index == 0:
+        if slot == self._oldest_slot():
             return None
-        before = int(order[index - 1]) if order is not None else index - 1
-        fraction = (t - times[index - 1]) / (times[index] - times[index - 1])
+        before = (slot - 1) % times.size
+        fraction = (t - times[before]) / (times[slot] - times[before])
         return pin.interpolate(
             self.model, self.configurations[before], self.configurations[slot], fraction
         )
+
+    def _slot_at_or_after(self, t: float) -> int | None:
+        """The slot of the oldest reading at or after ``t``; None if all are before.
+
+        The ring holds two time-ordered runs: slots ``newest + 1 ... size - 1`` (older, once
+        the ring has wrapped) then ``0 ... newest``.
+        """
+        times, size = self.times, self.times.size
+        newest = (self.count - 1) % size
+        if times[newest] < t:
+            return None
+        wrapped = self.count > size and newest < size - 1
+        if wrapped and t <= times[size - 1]:  # in the older run
+            return newest + 1 + int(np.searchsorted(times[newest + 1 :], t))
+        return int(np.searchsorted(times[: newest + 1], t))

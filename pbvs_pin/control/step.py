@@ -7,7 +7,9 @@ classes do, each from the module named for it: the secondary objectives of eqs. 
 and the dynamic compensation of eq. (20) (:mod:`pbvs_pin.control.compensation`).
 :class:`FusedControlStep` packs the controller's model, gains and built-in secondary
 objectives once, in the buffers named by :mod:`pbvs_pin.control.layout`; then each step makes
-its Pinocchio calls and one call of :func:`fused_control_step`. A scenario with the IBVS
+its Pinocchio calls and one call of :func:`fused_control_step`, which also brings the newest
+frame up to now when the tracker predicts (:mod:`pbvs_pin.control.tracking`: the same
+compiled projection, eq. (2), as the modular path's). A scenario with the IBVS
 baseline or a user-defined objective uses the modular classes.
 
 The equations' kernels are declared ``inline="always"``: Numba compiles their bodies into the
@@ -28,6 +30,7 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
+from pbvs_pin.camera import project_points
 from pbvs_pin.control import layout
 from pbvs_pin.control.compensation import (
     DynamicCompensator,
@@ -47,14 +50,17 @@ from pbvs_pin.control.secondary import (
     posture_term,
 )
 from pbvs_pin.control.upright import Safety, upright_row
-from pbvs_pin.features import feature_jacobians
+from pbvs_pin.features import ImageMeasurement, feature_jacobians
 from pbvs_pin.linalg import matmul
 from pbvs_pin.robot import arm_angles
 
 LOCAL = pin.LOCAL
+NAN = float("nan")
+_NO_WORLD = np.zeros((0, 3))
+"""``world`` when the step does not predict."""
 
 if TYPE_CHECKING:
-    from pbvs_pin.features import FeatureSet, ImageMeasurement
+    from pbvs_pin.features import FeatureSet
     from pbvs_pin.robot import MobileManipulator
 
 
@@ -62,6 +68,7 @@ if TYPE_CHECKING:
 def fused_control_step(
     frame_jacobian: np.ndarray,
     rotation: np.ndarray,
+    translation: np.ndarray,
     mass_upper: np.ndarray,
     bias: np.ndarray,
     gravity: np.ndarray,
@@ -69,6 +76,8 @@ def fused_control_step(
     v: np.ndarray,
     points: np.ndarray,
     depths: np.ndarray,
+    world: np.ndarray,
+    age: float,
     target_velocity: np.ndarray,
     laser: np.ndarray,
     dt: float,
@@ -81,13 +90,18 @@ def fused_control_step(
     Args:
         frame_jacobian: Camera frame Jacobian, ``pin.LOCAL``. Shape (6, nv).
         rotation: ``wRc``. Shape (3, 3).
+        translation: ``wtc`` [m]. Shape (3,).
         mass_upper: ``pin.crba``. Shape (nv, nv).
         bias: ``pin.nonLinearEffects`` at ``S v``. Shape (nv,).
         gravity: ``pin.computeGeneralizedGravity``. Shape (nv,).
         q: Configuration. Shape (nq,).
         v: Actuated velocity. Shape (n,).
-        points: Measured image points [px]. Shape (k, 2).
-        depths: Their depths [m]. Shape (k,).
+        points: Image points [px] to servo on. Shape (k, 2). With a finite ``age``, the
+            prediction is written into it.
+        depths: Their depths [m]. Shape (k,); written into with a finite ``age``.
+        world: The newest frame's points in the world [m]. Shape (k, 3).
+        age: Time since that frame's capture [s]: predict from ``world``
+            (:mod:`~pbvs_pin.control.tracking`); NaN: servo on ``points`` as given.
         target_velocity: ``phat_dot`` [m/s]. Shape (3,).
         laser: ``[d, alpha]`` of the nearest return [m, rad]. Shape (2,).
         dt: Control period [s].
@@ -119,6 +133,12 @@ def fused_control_step(
         if n_base >= 2:
             secondary[0] -= impedance[0]
             secondary[n_base - 1] += impedance[1]
+    if not np.isnan(age):  # the prediction: the frame's points moved by phat_dot, eq. (2) at q
+        image, image_depths = project_points(
+            world + target_velocity * age, translation, rotation, setting.focal, 0.0
+        )
+        points[:, :] = image
+        depths[:] = image_depths
     # eq. (3)
     camera_jacobian = matmul(frame_jacobian, p.selection)
     xi, jacobian, object_jacobian = feature_jacobians(
@@ -254,6 +274,9 @@ class FusedControlStep:
         self._u, self._v_ref, self._scalars = self.views.u, self.views.v_ref, self.views.scalars
         self._v2 = layout.slot(layout.StepScalars, "v2")
         self._has_previous = layout.slot(layout.StepScalars, "has_previous")
+        points = features.n_points
+        self.predicted = ImageMeasurement(np.zeros((points, 2)), np.ones(points))
+        """The last prediction servoed on (overwritten by the next step that predicts)."""
         self._pinocchio = (
             model.model,
             model.data,
@@ -273,18 +296,6 @@ class FusedControlStep:
             not isinstance(controller, ClassicIbvs) and built_in and len(set(kinds)) == len(kinds)
         )
 
-    def place_camera(self, q: np.ndarray) -> pin.SE3:
-        """The joint Jacobians and the camera placement at ``q``: a step's first calls.
-
-        The placement (``world_T_camera``, the same numbers as
-        :meth:`~pbvs_pin.MobileManipulator.camera_placement`) refers to the model's
-        ``pin.Data``, valid until its next Pinocchio call; :meth:`step` must follow at the
-        same ``q``.
-        """
-        model, data, frame = self._pinocchio[:3]
-        pin.computeJointJacobians(model, data, q)
-        return pin.updateFramePlacement(model, data, frame)
-
     def step(
         self,
         q: np.ndarray,
@@ -293,31 +304,42 @@ class FusedControlStep:
         target_velocity: np.ndarray,
         laser: np.ndarray,
         dt: float,
+        predict_from: tuple[np.ndarray, float] | None = None,
     ) -> tuple[np.ndarray, np.ndarray, float]:
-        """Command and velocity reference for one control period, after :meth:`place_camera`.
+        """Command and velocity reference for one control period.
 
         Args:
-            q: Configuration, the one :meth:`place_camera` was given. Shape (nq,).
+            q: Configuration. Shape (nq,).
             v: Measured actuated velocity. Shape (n,).
-            measurement: The newest image measurement.
+            measurement: The measurement to servo on; ignored with ``predict_from``.
             target_velocity: ``phat_dot`` [m/s]. Shape (3,).
             laser: ``[d, alpha]``. Shape (2,).
             dt: Control period [s].
+            predict_from: The newest frame's points in the world [m] (k, 3) and their age
+                [s]: servo on their prediction (:mod:`~pbvs_pin.control.tracking`), left in
+                :attr:`predicted`.
 
         Returns:
             ``u`` (n,), ``v_ref`` (n,), ``V2``: views into a buffer that the next step
             overwrites. Zero ``u`` when an input is not finite.
         """
         model, data, frame, selection, v_pin = self._pinocchio
-        rotation = data.oMf[frame].rotation
+        pin.computeJointJacobians(model, data, q)
+        placement = pin.updateFramePlacement(model, data, frame)
         jacobian = pin.getFrameJacobian(model, data, frame, LOCAL)
         mass = pin.crba(model, data, q)
         np.dot(selection, v, out=v_pin)
         bias = pin.nonLinearEffects(model, data, q, v_pin)
         gravity = pin.computeGeneralizedGravity(model, data, q)
+        if predict_from is None:
+            points, depths, world, age = measurement.points, measurement.depths, _NO_WORLD, NAN
+        else:
+            points, depths = self.predicted.points, self.predicted.depths
+            world, age = predict_from
         fused_control_step(
-            jacobian, rotation, mass, bias, gravity, q, v, measurement.points,
-            measurement.depths, target_velocity, laser, dt, self.params, self.indices, self.state,
+            jacobian, placement.rotation, placement.translation, mass, bias, gravity, q, v,
+            points, depths, world, age, target_velocity, laser, dt, self.params, self.indices,
+            self.state,
         )  # fmt: skip
         return self._u, self._v_ref, self._scalars[self._v2]
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from pbvs_pin.camera import project_points
+from pbvs_pin.camera import back_project_points, project_points
 from pbvs_pin.estimation import VelocityEstimator
 from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.robot import MobileManipulator
@@ -72,6 +72,7 @@ class TargetTracker:
         self.used: ImageMeasurement | None = None
         self.predicting = False
         self._world = np.zeros((0, 3))
+        self._focal = model.camera.focal_px
         """The newest measurement's points in the world, where its frame saw them [m]."""
 
     def take(
@@ -101,10 +102,11 @@ class TargetTracker:
                 prior.depths + self.smoothing * (measurement.depths - prior.depths),
             )
         self.measurement, self.capture_time = measurement, capture_time
-        pose = model.camera_pose(q_capture)
-        in_camera = model.camera.back_project(measurement.points, measurement.depths)
-        self._world = in_camera @ pose.rotation.T + pose.translation
-        self.estimator.update(pose.act(in_camera.mean(axis=0)), capture_time)
+        pose = model.camera_placement(q_capture)
+        in_camera = back_project_points(measurement.points, measurement.depths, self._focal)
+        rotation, translation = pose.rotation, pose.translation
+        self._world = in_camera @ rotation.T + translation
+        self.estimator.update(rotation @ in_camera.mean(axis=0) + translation, capture_time)
 
     def current(
         self, t: float, q: np.ndarray, velocity: np.ndarray, placement: pin.SE3 | None = None
@@ -117,17 +119,28 @@ class TargetTracker:
             velocity: The target velocity to predict with [m/s]. Shape (3,).
             placement: The model's camera placement at ``q`` if already computed.
         """
+        chosen = self.choose(t)
+        self.used = self.predicted(t, q, velocity, placement) if self.predicting else chosen
+        return self.used
+
+    def choose(self, t: float) -> ImageMeasurement | None:
+        """The measurement to servo on at ``t``, as it is or (``predicting``) predicted.
+
+        Sets ``predicting``; None: nothing to servo on. The caller that predicts sets
+        ``used`` (:meth:`current` does both).
+        """
         age = t - self.capture_time
         # with a hold, a frame older than it is no longer used, even if none arrived since
         expired = self.hold > 0 and age > self.hold
         held = self.lost and self.hold > 0 and not expired
         fresh = not self.lost and not expired
         self.predicting = self.measurement is not None and (held or (self.predict and fresh))
-        if self.predicting:
-            self.used = self.predicted(t, q, velocity, placement)
-        else:
-            self.used = self.measurement if fresh else None
-        return self.used
+        return self.measurement if self.predicting or fresh else None
+
+    @property
+    def world(self) -> np.ndarray:
+        """The newest measurement's points in the world, where its frame saw them [m] (k, 3)."""
+        return self._world
 
     def predicted(
         self, t: float, q: np.ndarray, velocity: np.ndarray, placement: pin.SE3 | None = None
