@@ -173,6 +173,52 @@ def test_every_page_renders_with_no_broken_image_or_link(site):
         assert not errors, errors
 
 
+JS_MATH = """() => MathJax.startup.promise.then(() => ({
+    math: document.querySelectorAll('.math').length,
+    typeset: document.querySelectorAll('.math mjx-container').length,
+    glyphs: document.querySelectorAll('mjx-container mjx-c').length,
+    width: Math.min(...[...document.querySelectorAll('mjx-container')]
+        .map(e => e.getBoundingClientRect().width)),
+    text: document.body.innerText,
+}))"""
+
+
+def test_equations_are_typeset_offline(site):
+    """The docstrings' equations are typeset by the MathJax copied into the site: every script
+    is local, a page opened with all network refused shows MathJax's output for each equation
+    and no raw TeX."""
+    from browser import chromium
+
+    for page in sorted(p for p in site.rglob("*.html") if "_static" not in p.parts):
+        scripts = re.findall(r'<script[^>]*\bsrc="([^"]+)"', page.read_text())
+        assert not [s for s in scripts if "://" in s or s.startswith("//")], (page.name, scripts)
+    assert (site / "_static" / "mathjax" / "tex-chtml.js").is_file()
+    with chromium() as browser:
+        context = browser.new_context()
+        remote: list[str] = []
+
+        def local_only(route):
+            if route.request.url.startswith("file://"):
+                route.continue_()
+            else:
+                remote.append(route.request.url)
+                route.abort()
+
+        context.route("**/*", local_only)
+        tab = context.new_page()
+        errors: list[str] = []
+        tab.on("pageerror", lambda e: errors.append(str(e)))
+        tab.on("console", lambda m: m.type == "error" and errors.append(m.text))
+        tab.goto((site / "api.html").as_uri())
+        tab.wait_for_function("() => window.MathJax && MathJax.startup", timeout=30_000)
+        found = tab.evaluate(JS_MATH)
+    assert found["math"] >= 5 and found["typeset"] == found["math"], found["math"]
+    assert found["glyphs"] >= 3 * found["math"] and found["width"] > 0  # glyphs drawn
+    for tex in ("\\(", "\\[", "\\frac", "\\begin"):
+        assert tex not in found["text"], tex
+    assert not remote and not errors, (remote, errors)
+
+
 QUICK_START = (
     "pip install . && pbvs-pin reproduce --out results\n"
     "pip install '.[test]' && ruff check pbvs_pin tests examples && python -m pytest -q\n"

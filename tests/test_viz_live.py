@@ -12,10 +12,11 @@ import sys
 import time
 import types
 
+import cv2
 import numpy as np
 import pinocchio as pin
 import pytest
-from browser import JS_DESCRIBE, Page, chromium, geometry_placements
+from browser import JS_DESCRIBE, JS_NODE, JS_SET_VISIBLE, Page, chromium, geometry_placements
 
 import pbvs_pin.viz.live as live_module
 import pbvs_pin.viz.server as server
@@ -37,6 +38,28 @@ CAMERA = "meshcat/pbvs/camera"
 CURRENT = ["meshcat/pbvs/camera/image/current/0", "meshcat/pbvs/camera/image/current/1"]
 TRAILS = ["meshcat/pbvs/trail_platform", "meshcat/pbvs/trail_target"]
 SPEED = 1.0  # simulated seconds per wall-clock second in the live run
+EYE = "Cameras/default/rotated/<object>/pbvs_eye_view"  # the eye-view panel, on the view camera
+
+# The eye-view panel's corners projected by the page's own viewing camera: its rectangle on
+# the screen [px], (left, top, right, bottom), and the uuid of the mesh shown.
+JS_PANEL = (
+    "(path) => {"
+    + JS_NODE
+    + """
+    const o = pbvsNode(path).children['<object>'].object;
+    const camera = window.viewer.camera, canvas = window.viewer.renderer.domElement;
+    window.viewer.scene.updateMatrixWorld(true);
+    o.geometry.computeBoundingBox();
+    const b = o.geometry.boundingBox, cols = [], rows = [];
+    for (const x of [b.min.x, b.max.x]) for (const y of [b.min.y, b.max.y]) {
+        const p = new o.position.constructor(x, y, 0).applyMatrix4(o.matrixWorld).project(camera);
+        cols.push((p.x + 1) / 2 * canvas.clientWidth);
+        rows.push((1 - p.y) / 2 * canvas.clientHeight);
+    }
+    return {rect: [Math.min(...cols), Math.min(...rows), Math.max(...cols), Math.max(...rows)],
+            uuid: o.uuid, loaded: o.material.map !== null && o.material.map.image !== undefined};
+}"""
+)
 
 
 JS_WATCH_CAMERA = """() => {
@@ -186,6 +209,121 @@ def test_live_page_is_updated_during_the_run(live_run):
     seen = live_run["seen"]
     assert len(seen) >= 5, seen
     assert live_run["stats"].frames >= 20, live_run["stats"]
+
+
+# ---------------------------------------------------------------------- robot's-eye view
+def _panel(page, expected: np.ndarray, timeout: float = 15.0) -> tuple[np.ndarray, float]:
+    """The screenshot inside the eye-view panel once it shows ``expected`` (RGB, any size),
+    and its mean absolute difference from it [grey levels]."""
+    deadline = time.monotonic() + timeout
+    while True:
+        left, top, right, bottom = page.page.evaluate(JS_PANEL, EYE)["rect"]
+        inner = (slice(round(top) + 2, round(bottom) - 2), slice(round(left) + 2, round(right) - 2))
+        size = (round(right) - round(left), round(bottom) - round(top))
+        want = cv2.resize(expected, size, interpolation=cv2.INTER_AREA).astype(float)
+        want = want[2:-2, 2:-2]
+        shot = page.screenshot()[inner]
+        error = float(np.abs(shot - want).mean())
+        if error < 4.0 or time.monotonic() > deadline:
+            return shot, error
+        time.sleep(0.2)
+
+
+def _sphere_pixels(rgb: np.ndarray) -> list[int]:
+    """Pixels of the upper (green) and lower (yellow) sphere's colour in an RGB image."""
+    hsv = cv2.cvtColor(np.ascontiguousarray(rgb, dtype=np.uint8), cv2.COLOR_RGB2HSV)
+    hue, vivid = hsv[..., 0].astype(int), (hsv[..., 1] > 128) & (hsv[..., 2] > 100)
+    return [int(np.sum(vivid & (np.abs(hue - h) < 8))) for h in (60, 30)]  # OpenCV: deg / 2
+
+
+def test_live_eye_view_panel_is_fixed_in_the_view_and_shows_the_points(live_run):
+    """Points camera: a panel in the lower left of the view, over the scene, that shows the
+    last measured points as discs of the spheres' colours."""
+    page, snapshot = live_run["page"], live_run["snapshots"][-1]
+    assert snapshot.image is None  # no image: the panel draws one
+    camera = live_run["live"].robot.camera
+    panel = page.page.evaluate(JS_PANEL, EYE)
+    left, top, right, bottom = panel["rect"]
+    height, width = page.screenshot().shape[:2]
+    assert 0 < left < width / 4 and right < width and height / 2 < top < bottom < height, panel
+    np.testing.assert_allclose(bottom - top, 0.4 * height, rtol=0.02)
+    np.testing.assert_allclose((right - left) / (bottom - top), camera.width / camera.height, 1e-3)
+    # the last points, drawn as discs: the green disc's centre where the upper point is
+    deadline, found, want = time.monotonic() + 15.0, None, None
+    col, row = camera.to_pixel(snapshot.points[0])
+    want = (left + col / camera.width * (right - left), top + row / camera.height * (bottom - top))
+    while found is None or np.hypot(*np.subtract(found, want)) > 3.0:
+        if time.monotonic() > deadline:
+            break
+        shot = page.screenshot()
+        hsv = cv2.cvtColor(shot.astype(np.uint8), cv2.COLOR_RGB2HSV)
+        green = (hsv[..., 1] > 128) & (np.abs(hsv[..., 0].astype(int) - 60) < 8)
+        green[: round(top)] = green[:, round(right) :] = False  # the scene's triad is green too
+        rows, cols = np.nonzero(green)
+        found = (cols.mean() + 0.5, rows.mean() + 0.5) if len(rows) else (np.nan, np.nan)
+        time.sleep(0.2)
+    assert np.hypot(*np.subtract(found, want)) < 3.0, (found, want)
+    inner = (slice(round(top) + 2, round(bottom) - 2), slice(round(left) + 2, round(right) - 2))
+    assert min(_sphere_pixels(shot[inner])) > 20
+    # over the scene: hiding it changes the pixels inside its rectangle, and only those
+    assert page.page.evaluate(JS_SET_VISIBLE, [EYE, False]) is False
+    hidden = page.screenshot()
+    assert page.page.evaluate(JS_SET_VISIBLE, [EYE, True]) is True
+    changed = np.abs(page.screenshot() - hidden).max(axis=2) > 40
+    outside = np.ones_like(changed)
+    outside[round(top) - 2 : round(bottom) + 2, round(left) - 2 : round(right) + 2] = False
+    assert changed[inner].mean() > 0.8 and changed[outside].mean() < 0.001
+    stats = live_run["stats"]
+    assert 3 <= stats.eye_frames <= 5 * 2.0 + 2, stats  # at most 5 a second, plus start/flush
+    print(f"eye view (points): {stats.eye_frames} sent, {1e3 * stats.eye_seconds:.1f} ms each")
+    assert page.errors == []
+
+
+@pytest.fixture(scope="module")
+def rendered_run(browser):
+    """Experiment 1 with the rendered camera for 0.6 s, as fast as it goes, a browser watching."""
+    scenario = load_scenario("experiment1").with_values(
+        **{"camera.model": "rendered", "duration": 0.6}
+    )
+    snapshots = []
+    with LiveView(scenario) as live:
+        page = Page(browser, live.url)
+        page.wait_ready(SPHERES, n_actions=0)
+
+        def observer(snapshot):
+            snapshots.append(snapshot)
+            live.show(snapshot)
+
+        wall = time.monotonic()
+        simulate(scenario, observer=observer)
+        wall = time.monotonic() - wall
+        assert live.flush()
+        yield {"live": live, "page": page, "snapshots": snapshots, "wall": wall}
+        page.page.close()
+
+
+def test_live_eye_view_shows_the_rendered_frames(rendered_run):
+    """Rendered camera: the panel shows the run's last frame (both spheres in their colours)
+    with the desired points crossed in cyan, at a small cost per image."""
+    live, page = rendered_run["live"], rendered_run["page"]
+    frames = {s.image.time: s.image for s in rendered_run["snapshots"] if s.image is not None}
+    assert len(frames) == 18  # 30 Hz for 0.6 s
+    last = frames[max(frames)]
+    assert last.visible
+    shot, error = _panel(page, last.image)
+    print(f"eye view (rendered): panel differs from the last frame by {error:.1f} grey levels")
+    assert error < 4.0, error  # the marks and the texture's filtering; the first frame: 14
+    assert min(_sphere_pixels(shot)) > 20
+    hsv = cv2.cvtColor(shot.astype(np.uint8), cv2.COLOR_RGB2HSV)
+    cyan = (hsv[..., 1] > 128) & (np.abs(hsv[..., 0].astype(int) - 90) < 8)
+    assert cyan.sum() > 10  # the crosses at xi_d
+    stats = live.stats()
+    print(
+        f"eye view (rendered): {stats.eye_frames} sent in {rendered_run['wall']:.1f} s, "
+        f"{1e3 * stats.eye_seconds:.1f} ms each (mark, PNG, send)"
+    )
+    assert 2 <= stats.eye_frames <= 5 * rendered_run["wall"] + 2, stats
+    assert page.errors == []
 
 
 def test_live_view_rejects_a_bad_speed():

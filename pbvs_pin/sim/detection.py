@@ -23,6 +23,7 @@ Pixel convention (as MuJoCo and OpenCV draw): pixel ``(col, row)`` covers
 from __future__ import annotations
 
 import abc
+import colorsys
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -35,6 +36,31 @@ from pbvs_pin.exceptions import GainError, ShapeError
 SPHERE_HUES = (120.0, 60.0)
 """Hue [deg] of the upper and of the lower sphere (green and yellow): far from the reference
 robot's red chassis, grey arm and dark blue laser, and from the grey floor."""
+
+
+def sphere_rgba(hue: float) -> list[float]:
+    """A saturated colour [0-1] of ``hue`` [deg] for a sphere (RGBA)."""
+    return [*colorsys.hsv_to_rgb(hue / 360.0, 1.0, 0.9), 1.0]
+
+
+@dataclass(frozen=True)
+class CameraImage:
+    """The newest image of a rendered camera and what its detector found in it.
+
+    Attributes:
+        time: Capture time [s].
+        image: RGB ``uint8``, as the detector saw it (image effects included).
+            Shape (H, W, 3).
+        points: ``[u, v]`` of each sphere [px]; NaN when not found. Shape (2, 2).
+        diameters: Apparent diameters [px]; NaN when not found. Shape (2,).
+        visible: The detector found both spheres (before the camera's faults act).
+    """
+
+    time: float
+    image: np.ndarray
+    points: np.ndarray
+    diameters: np.ndarray
+    visible: bool
 
 
 class Detector(abc.ABC):

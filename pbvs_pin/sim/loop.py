@@ -16,6 +16,7 @@ import time as wallclock
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -31,6 +32,9 @@ from pbvs_pin.sim.sensing import Sensing
 from pbvs_pin.sim.setup import Setup, build
 from pbvs_pin.sim.vision import Frame
 
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from pbvs_pin.sim.detection import CameraImage
+
 
 @dataclass(frozen=True)
 class Snapshot:
@@ -44,6 +48,8 @@ class Snapshot:
         xi_d: Desired features [px]. Shape (r,).
         points: Measured image points ``[u, v]`` of both spheres [px] (NaN when unseen).
             Shape (2, 2).
+        image: The rendered camera's newest image with its detections (the robot's-eye
+            view); None with the points camera.
     """
 
     t: float
@@ -52,6 +58,7 @@ class Snapshot:
     xi: np.ndarray
     xi_d: np.ndarray
     points: np.ndarray
+    image: CameraImage | None = None
 
 
 def simulate(
@@ -155,7 +162,9 @@ def _snapshot(setup: Setup, tracker: TargetTracker, t: float) -> Snapshot:
     seen = tracker.measurement is not None and not tracker.lost
     points = tracker.measurement.points if seen else np.full((2, 2), np.nan)
     xi = setup.features.features(tracker.measurement) if seen else np.full(3, np.nan)
-    return Snapshot(t, setup.plant.q.copy(), setup.target.centres(t), xi, setup.xi_d, points)
+    renderer = setup.sensor.renderer
+    image = renderer.latest if renderer is not None else None
+    return Snapshot(t, setup.plant.q.copy(), setup.target.centres(t), xi, setup.xi_d, points, image)
 
 
 def progress_label(setup: Setup) -> str:

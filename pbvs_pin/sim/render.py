@@ -24,7 +24,6 @@ this module sets it to ``egl`` when it is not set and MuJoCo is not imported yet
 
 from __future__ import annotations
 
-import colorsys
 import os
 import sys
 
@@ -40,7 +39,7 @@ from pbvs_pin import frames
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.exceptions import RenderingUnavailable, UrdfError
 from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.sim.detection import SPHERE_HUES
+from pbvs_pin.sim.detection import SPHERE_HUES, sphere_rgba
 from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle, Obstacle
 
 OPTICAL_TO_MUJOCO = np.diag([1.0, -1.0, -1.0])
@@ -54,11 +53,6 @@ FLOOR_RGB = ((0.45, 0.45, 0.45), (0.6, 0.6, 0.6))
 
 NEAR_CLIP = 0.01
 """Distance [m] from the camera of the near clipping plane."""
-
-
-def sphere_rgba(hue: float) -> list[float]:
-    """A saturated colour [0-1] of ``hue`` [deg] for a sphere."""
-    return [*colorsys.hsv_to_rgb(hue / 360.0, 1.0, 0.9), 1.0]
 
 
 def _visual_urdf(robot: MobileManipulator) -> str:

@@ -31,7 +31,7 @@ import pinocchio as pin
 
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.sim.detection import Detector
+from pbvs_pin.sim.detection import CameraImage, Detector
 from pbvs_pin.sim.render import SceneRenderer
 
 RENDER_STREAM = 21
@@ -112,6 +112,7 @@ class RenderedCamera:
         self.errors: list[np.ndarray] = []  # detected minus projected [u1, v1, u2, v2, d1, d2]
         self.detected: list[bool] = []
         self.projected_inside: list[bool] = []
+        self.latest: CameraImage | None = None  # the newest frame, for a live view
 
     def observe(self, t: float) -> None:
         """Remember the plant's configuration at ``t`` for a blurred exposure (none without)."""
@@ -134,13 +135,15 @@ class RenderedCamera:
 
         Returns:
             Points ``[u, v]`` [px] (shape (2, 2)), apparent diameters [px] (shape (2,)) and
-            visibility, as the detector gives them.
+            visibility, as the detector gives them; the frame itself is kept as
+            :attr:`latest` (a :class:`~pbvs_pin.sim.detection.CameraImage`).
         """
         image = self.draw(t, camera_pose, centres)
         points, diameters, visible = self.detector.detect(image)
         points = np.asarray(points, dtype=float).reshape(2, 2)
         diameters = np.asarray(diameters, dtype=float).reshape(2)
         self._record(t, camera_pose, centres, points, diameters, bool(visible))
+        self.latest = CameraImage(t, image, points, diameters, bool(visible))
         return points, diameters, bool(visible)
 
     def draw(self, t: float, camera_pose: pin.SE3, centres: np.ndarray) -> np.ndarray:

@@ -6,6 +6,9 @@ after the run by the rendered camera's own scene (:class:`pbvs_pin.sim.render.Sc
 for a run with either camera model. On each image the default detector's finds are circled
 (white: the detected centre and apparent diameter) and the desired features ``xi_d`` are
 marked (cyan crosses). :func:`write_eye_view` writes an image strip (PNG) or a video (MP4).
+:func:`mark` draws those marks on any image; the live view
+(:mod:`pbvs_pin.viz.eye_panel`) draws them with the detections the run's own detector made.
+MuJoCo is imported only to draw a log's images (:func:`eye_views`).
 """
 
 from __future__ import annotations
@@ -19,7 +22,6 @@ from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.sim.detection import ColourDetector, Detector
 from pbvs_pin.sim.log import RunLog
-from pbvs_pin.sim.render import SceneRenderer
 from pbvs_pin.sim.scenario import OBSTACLE_KINDS
 from pbvs_pin.sim.targets import centres_from
 from pbvs_pin.viz.run_scene import log_facts, log_robot
@@ -40,6 +42,8 @@ def eye_views(log: RunLog, samples: np.ndarray) -> list[np.ndarray]:
     Returns:
         One image per sample, shape (H, W, 3).
     """
+    from pbvs_pin.sim.render import SceneRenderer  # MuJoCo, only to draw
+
     robot, facts = log_robot(log), log_facts(log)
     camera = robot.camera
     obstacles = [
@@ -72,17 +76,47 @@ def annotate(
         detector: Finds the spheres.
         desired: Desired ``[u, v]`` of both spheres [px] (NaN: not drawn). Shape (2, 2).
     """
-    out = np.ascontiguousarray(image).copy()
     points, diameters, visible = detector.detect(image)
-    if visible:
+    return mark(image, camera, points if visible else None, diameters, desired)
+
+
+def mark(
+    image: np.ndarray,
+    camera: CameraIntrinsics,
+    points: np.ndarray | None,
+    diameters: np.ndarray,
+    desired: np.ndarray,
+    thickness: int = 1,
+) -> np.ndarray:
+    """A copy of ``image`` with found spheres circled and the desired points crossed.
+
+    Args:
+        image: RGB ``uint8``. Shape (H, W, 3).
+        camera: Intrinsics (pixel positions of image points).
+        points: Found ``[u, v]`` of both spheres [px], circled in white; None: nothing
+            found. Shape (2, 2).
+        diameters: Their apparent diameters [px] (the circles'). Shape (2,).
+        desired: Desired ``[u, v]`` of both spheres [px] (NaN: not drawn), crossed in cyan.
+            Shape (2, 2).
+        thickness: Line width of the marks [px of the image].
+    """
+    out = np.ascontiguousarray(image).copy()
+    if points is not None:
         for (col, row), diameter in zip(camera.to_pixel(points), diameters, strict=True):
-            centre = (round(col - 0.5), round(row - 0.5))  # OpenCV's pixel centres at integers
-            cv2.circle(out, centre, round(diameter / 2), DETECTION_BGR[::-1], 1)
+            if _drawable(col, row) and np.isfinite(diameter):
+                centre = (round(col - 0.5), round(row - 0.5))  # OpenCV's pixel centres at ints
+                cv2.circle(out, centre, round(diameter / 2), DETECTION_BGR[::-1], thickness)
     for col, row in camera.to_pixel(desired):
-        if np.isfinite(col) and np.isfinite(row):
+        if _drawable(col, row):
             centre = (round(col - 0.5), round(row - 0.5))
-            cv2.drawMarker(out, centre, DESIRED_BGR[::-1], cv2.MARKER_CROSS, 12, 1)
+            size = 12 * thickness
+            cv2.drawMarker(out, centre, DESIRED_BGR[::-1], cv2.MARKER_CROSS, size, thickness)
     return out
+
+
+def _drawable(col: float, row: float) -> bool:
+    """Whether OpenCV can draw at pixel ``(col, row)`` (finite, within its integer range)."""
+    return bool(np.isfinite(col) and np.isfinite(row) and max(abs(col), abs(row)) < 1e6)
 
 
 def write_eye_view(log: RunLog, path: str | Path, kind: str = "strip") -> Path:

@@ -12,6 +12,12 @@ it stops answering, the view prints one warning on stderr and does nothing from 
 while the simulation goes on. With a ``speed``, :meth:`LiveView.show` also holds the
 simulation back so that the browser plays the run at that many simulated seconds per second
 (``pbvs-pin run --meshcat`` plays in real time); without one the run goes as fast as it can.
+
+The robot's-eye view (:class:`~pbvs_pin.viz.eye_panel.EyePanel`) is a panel in the lower left
+of the browser's view: the rendered camera's newest frame with its detections and ``xi_d``
+marked, or, with the points camera, the measured points drawn as discs with the same marks.
+It is sent at most :data:`EYE_VIEW_RATE` times a second of wall-clock time, and only when
+there is something new to show (a new frame, or moved points).
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ from pbvs_pin.sim.scenario import Scenario, load_scenario, obstacle_table
 from pbvs_pin.sim.setup import solve_target_start
 from pbvs_pin.validation import positive_number
 from pbvs_pin.viz import server
+from pbvs_pin.viz.eye_panel import EyePanel
 from pbvs_pin.viz.frustum import add_camera_frustum, add_camera_triad
 from pbvs_pin.viz.primitives import set_camera_view
 from pbvs_pin.viz.recorder import offline_visualizer
@@ -62,6 +69,9 @@ TRAIL_STEP = 0.002
 MAX_RATE = 30.0
 """Most scene updates sent per second of wall-clock time [Hz]."""
 
+EYE_VIEW_RATE = 5.0
+"""Most robot's-eye view images sent per second of wall-clock time [Hz]."""
+
 LIVE_ADVICE = (
     "run without --meshcat and add `--html FILE` to write a standalone replay next to the "
     "results (`pbvs-pin run SCENARIO --html FILE`), then open that file in a browser"
@@ -86,8 +96,11 @@ class LiveStats:
         snapshots: Calls of :meth:`LiveView.show`.
         frames: Scene updates sent to the server (at most :data:`MAX_RATE` a second).
         show_seconds: Mean wall time of one :meth:`LiveView.show` call [s].
-        frame_seconds: Mean wall time of the calls that sent a scene update [s].
+        frame_seconds: Mean wall time of the calls that sent a scene update (and with it,
+            at most :data:`EYE_VIEW_RATE` times a second, a robot's-eye view image) [s].
         total_seconds: Wall time the run spent in :meth:`LiveView.show` [s].
+        eye_frames: Robot's-eye view images sent (at most :data:`EYE_VIEW_RATE` a second).
+        eye_seconds: Mean wall time of marking, encoding and sending one of them [s].
     """
 
     snapshots: int
@@ -95,6 +108,8 @@ class LiveStats:
     show_seconds: float
     frame_seconds: float
     total_seconds: float
+    eye_frames: int = 0
+    eye_seconds: float = 0.0
 
 
 def _start(scenario: Scenario, robot: MobileManipulator) -> tuple[np.ndarray, np.ndarray]:
@@ -133,6 +148,7 @@ class LiveView:
         vis: The served visualizer.
         url: Address of the viewer page.
         scene: The drawn :class:`~pbvs_pin.viz.run_scene.RunScene`.
+        eye: The robot's-eye view panel (None when ``eye_view`` is off).
     """
 
     def __init__(
@@ -141,6 +157,7 @@ class LiveView:
         timeout: float | None = None,
         trail_every: int = TRAIL_EVERY,
         speed: float | None = None,
+        eye_view: bool = True,
     ) -> None:
         """Start a meshcat server and draw the run's scene at its start.
 
@@ -151,6 +168,7 @@ class LiveView:
             trail_every: Snapshots between two redraws of the trails.
             speed: Simulated seconds shown per wall-clock second: 1.0 plays the run in real
                 time, 2.0 twice as fast; ``None`` lets the simulation run as fast as it can.
+            eye_view: Show the robot's-eye view panel (module docstring).
 
         Raises:
             GainError: If ``speed`` is not a positive number.
@@ -177,6 +195,9 @@ class LiveView:
             self.url: str = self.vis.url()
             self.scene = RunScene(self.vis, self.robot, facts)
             self.scene.apply(self.scene.poses(q0, centres0, facts.desired_points))
+            self.eye = (
+                EyePanel(self.vis, self.robot.camera, facts.desired_points) if eye_view else None
+            )
         except Exception as err:  # zmq errors: the server died while drawing
             server.stop_visualizer(self.vis)
             raise ViewerUnavailable(
@@ -195,6 +216,10 @@ class LiveView:
         self._frames = 0
         self._show_time = 0.0
         self._frame_time = 0.0
+        self._last_eye = -float("inf")
+        self._eye_shown: float | np.ndarray | None = None  # frame time, or points, shown
+        self._eye_frames = 0
+        self._eye_time = 0.0
 
     # ------------------------------------------------------------------ context manager
     def __enter__(self) -> LiveView:
@@ -223,6 +248,9 @@ class LiveView:
                 self._send(self._since_trail >= self._trail_every)
                 self._last_frame = started
                 sent = True
+                eye_due = started - self._last_eye >= 1.0 / EYE_VIEW_RATE
+                if self.eye is not None and eye_due and self._show_eye(self.eye, snapshot):
+                    self._last_eye = started
         except Exception as err:  # zmq errors, a dead server: a live view must not stop the run
             self._die(err)
         elapsed = time.perf_counter() - started
@@ -256,6 +284,8 @@ class LiveView:
                 self._send(trails=True)
             elif self._since_trail:
                 self._draw_trails()
+            if self.eye is not None and self._latest is not None:
+                self._show_eye(self.eye, self._latest)
         except Exception as err:  # a live view must not stop the run
             self._die(err)
         return self.alive
@@ -289,6 +319,8 @@ class LiveView:
             show_seconds=self._show_time / max(1, self._snapshots),
             frame_seconds=self._frame_time / max(1, self._frames),
             total_seconds=self._show_time,
+            eye_frames=self._eye_frames,
+            eye_seconds=self._eye_time / max(1, self._eye_frames),
         )
 
     @property
@@ -305,6 +337,37 @@ class LiveView:
             self._latest_sent = True
         if trails:
             self._draw_trails()
+
+    def _show_eye(self, eye: EyePanel, snapshot: Snapshot) -> bool:
+        """Send the robot's-eye view of ``snapshot`` unless it is the one shown.
+
+        Returns:
+            Whether an image was sent.
+        """
+        started = time.perf_counter()
+        frame, shown = snapshot.image, self._eye_shown
+        if frame is not None:  # the rendered camera's own frame and detections
+            if isinstance(shown, float) and shown == frame.time:
+                return False
+            points = frame.points if frame.visible else None
+            eye.show_image(frame.image, points, frame.diameters)
+            self._eye_shown = frame.time
+        else:  # the points camera: the measured points, drawn
+            points = np.asarray(snapshot.points, dtype=float)
+            if isinstance(shown, np.ndarray) and np.array_equal(shown, points, equal_nan=True):
+                return False
+            eye.show_points(points, self._apparent_diameters(snapshot))
+            self._eye_shown = points
+        self._eye_frames += 1
+        self._eye_time += time.perf_counter() - started
+        return True
+
+    def _apparent_diameters(self, snapshot: Snapshot) -> np.ndarray:
+        """The spheres' apparent diameters ``f D / z`` at their true depths [px]. Shape (2,)."""
+        camera = self.robot.camera
+        _, depths = camera.project_world(self.robot.camera_pose(snapshot.q), snapshot.centres)
+        diameter = self.scenario.target.diameter
+        return np.where(depths > 0, camera.focal_px * diameter / np.maximum(depths, 1e-9), np.nan)
 
     def _draw_trails(self) -> None:
         self.scene.draw_trails(self._platform, self._target)
