@@ -104,9 +104,8 @@ class TargetTracker:
         self.measurement, self.capture_time = measurement, capture_time
         pose = model.camera_placement(q_capture)
         in_camera = back_project_points(measurement.points, measurement.depths, self._focal)
-        rotation, translation = pose.rotation, pose.translation
-        self._world = in_camera @ rotation.T + translation
-        self.estimator.update(rotation @ in_camera.mean(axis=0) + translation, capture_time)
+        self._world = in_camera @ pose.rotation.T + pose.translation
+        self.estimator.update(pose.act(in_camera.mean(axis=0)), capture_time)
 
     def current(
         self, t: float, q: np.ndarray, velocity: np.ndarray, placement: pin.SE3 | None = None
