@@ -74,6 +74,8 @@ JUMP_SLACK = (0.05, 0.1)
 """Platform motion in one step [m, rad] beyond the velocity limits' reach that counts as an
 odometry jump."""
 
+FLOAT64 = np.dtype(np.float64)
+"""The dtype of the arrays the quick input checks accept as they are."""
 LATENCY_RESOLUTION = 1e-6
 """The frames' latency is rounded to this [s] before it sets the loop-gain margin."""
 
@@ -300,8 +302,8 @@ class Controller:
         if not t > self._t:
             raise ControlInputError(f"t = {t:g} s is not after the previous step's ({self._t:g} s)")
         model = self.model
-        q = self._array(q, "q") if _plain(q, self._nq) else model.check_configuration(q)
-        v = self._array(v, "v") if _plain(v, model.n) else model.check_velocity(v)
+        if not self._usable_as_given(q, v):  # the full checks name the argument at fault
+            q, v = model.check_configuration(q), model.check_velocity(v)
         if laser is not None:
             laser = np.array(laser, dtype=float)
             if laser.shape != (2,):
@@ -317,19 +319,18 @@ class Controller:
             )
         return t, q, v, laser, target_velocity
 
-    def _array(self, value: np.ndarray, name: str) -> np.ndarray:
-        """``q`` or ``v``, a float64 vector of the right size, checked finite (angles unit).
+    def _usable_as_given(self, q: object, v: object) -> bool:
+        """Whether ``q`` and ``v`` pass the quick checks of the 1 kHz path.
 
-        The full checks (which raise the error naming the argument) run only when the quick
-        ones fail.
+        They pass as float64 vectors of the right sizes, finite, with the configuration's
+        angles unit.
         """
-        model = self.model
-        full = model.check_configuration if name == "q" else model.check_velocity
-        if not math.isfinite(float(value.dot(value))):  # NaN or inf anywhere (or absurd)
-            return full(value)
-        if name == "q" and not pin.isNormalized(model.model, value, UNIT_TOLERANCE):
-            return full(value)
-        return value
+        return (
+            _plain(q, self._nq)
+            and _plain(v, self.model.n)
+            and math.isfinite(sum(q.tolist()) + sum(v.tolist()))  # NaN or inf anywhere
+            and pin.isNormalized(self.model.model, q, UNIT_TOLERANCE)
+        )
 
     def _velocity(self, given: np.ndarray | None) -> np.ndarray:
         """``phat_dot``: the given velocity, or the filter's estimate."""
@@ -485,7 +486,7 @@ class Controller:
 
 def _plain(value: object, size: int) -> bool:
     """Whether ``value`` is already a float64 vector of ``size`` entries (the fast path)."""
-    return isinstance(value, np.ndarray) and value.dtype == np.float64 and value.shape == (size,)
+    return type(value) is np.ndarray and value.dtype is FLOAT64 and value.shape == (size,)
 
 
 def _usable(shown: tuple[np.ndarray, np.ndarray] | None) -> tuple[ImageMeasurement | None, str]:
