@@ -310,6 +310,101 @@ def test_well_conditioned_jacobian_is_not_damped():
     np.testing.assert_allclose(pinv, jacobian.T, atol=1e-14)
 
 
+@pytest.mark.parametrize("feedback", [False, True])
+@pytest.mark.parametrize("period", [0.002, 5.0])
+def test_loop_gain_is_k_T_lambda_max_and_the_net_scales_k(feedback, period):
+    """``g = k_max T lambda_max(J J^T)`` (``J J# = I``: 1 with ``J#`` feedback), by numpy; above
+    the margin 1 the law is eq. (34) with ``k`` times ``1 / g``; ``T = 0`` turns the net off."""
+    n = 5
+    rng = np.random.default_rng(9)
+    gains = _gains(n, rng, use_pseudoinverse_feedback=feedback, camera_period=period)
+    controller = PassivityController(gains, NO_LIMITS)
+    jacobian, object_jacobian, target_velocity, secondary = _random_problem(rng, n)
+    error_px = rng.uniform(-200.0, 200.0, 3)
+    arguments = (error_px, jacobian * SCALE, object_jacobian * SCALE, target_velocity, secondary)
+    out = controller.step(*arguments)
+    largest = 1.0 if feedback else np.linalg.eigvalsh(jacobian @ jacobian.T)[-1]
+    gain = max(gains.k) * period * largest
+    assert out.loop_gain == pytest.approx(gain, rel=1e-10)
+    assert out.gain_limited == (gain > 1.0) == (period > 1.0)
+    scaled = PassivityController(
+        replace(gains, k=tuple(np.asarray(gains.k) * min(1.0, 1.0 / gain))), NO_LIMITS
+    )
+    scaled.safety = scaled.safety._replace(camera_period=0.0)  # the net off
+    reference = scaled.step(*arguments)
+    assert np.isnan(reference.loop_gain) and not reference.gain_limited
+    np.testing.assert_allclose(out.u, reference.u, rtol=1e-12, atol=1e-15)
+    assert out.storage == pytest.approx(reference.storage, rel=1e-12)
+
+
+@pytest.mark.parametrize("gap", [0.3, 1e-3])
+def test_damped_pseudo_inverse_is_the_nakamura_hanafusa_formula(gap):
+    """``J# = W^-1 J^T (J W^-1 J^T + mu^2 I)^-1``, ``mu^2 = mu_max^2 (1 - (s_min / s_0)^2)``,
+    with ``s_min`` from numpy's SVD of ``J W^-1/2`` and numpy's inverse."""
+    rng = np.random.default_rng(12)
+    n = 5
+    weights, weight = _weights("full", n, rng)
+    gains = _gains(n, rng, weights, damping_threshold=0.5, max_damping=0.3)
+    a, b, c = rng.standard_normal((3, n))
+    jacobian = np.array([a, b, a + gap * c])
+    pinv, _, damped = PassivityController(gains, NO_LIMITS).pseudo_inverse(jacobian)
+    inverse = np.linalg.inv(weight)
+    smallest = np.linalg.svd(jacobian @ np.linalg.cholesky(inverse), compute_uv=False)[-1]
+    assert damped == (smallest < 0.5)
+    mu2 = 0.3**2 * (1.0 - (smallest / 0.5) ** 2) if smallest < 0.5 else 0.0
+    gram = jacobian @ inverse @ jacobian.T + mu2 * np.eye(3)
+    reference = inverse @ jacobian.T @ np.linalg.inv(gram)
+    np.testing.assert_allclose(pinv, reference, rtol=1e-8)
+    # the law damps with the same sigma_0 and mu_max: its feed-forward is J# J_o phat_dot
+    object_jacobian, target_velocity = rng.standard_normal((3, 3)), rng.uniform(-0.3, 0.3, 3)
+    out = PassivityController(gains, NO_LIMITS).step(
+        np.zeros(3), jacobian * SCALE, object_jacobian * SCALE, target_velocity, np.zeros(n)
+    )
+    assert out.damped == damped and out.min_singular_value == pytest.approx(smallest, rel=1e-6)
+    np.testing.assert_allclose(
+        out.feedforward, reference @ object_jacobian @ target_velocity, rtol=1e-8, atol=1e-12
+    )
+
+
+def test_damping_starts_strictly_below_the_threshold():
+    """``s_min = s_0`` exactly (``J = [I 0]``): not damped, ``J#`` is ``J^T``."""
+    gains = ServoGains(damping_threshold=1.0, max_damping=0.5)
+    pinv, sigma_min, damped = PassivityController(gains, NO_LIMITS).pseudo_inverse(
+        np.hstack([np.eye(3), np.zeros((3, 2))])
+    )
+    assert sigma_min == 1.0 and not damped
+    np.testing.assert_array_equal(pinv, np.hstack([np.eye(3), np.zeros((3, 2))]).T)
+
+
+def test_a_jacobian_singular_to_round_off_gets_the_smallest_regularisation():
+    """Two equal rows and ``mu_max^2`` below the round-off floor: ``mu^2`` is raised to the
+    floor, ``1e-12 tr(J W^-1 J^T)``, no more; ``J J#`` is then the projector onto the range of
+    ``J`` (numpy's SVD) but for the round-off of the singular direction (~1e-5)."""
+    rng = np.random.default_rng(13)
+    a, b = rng.standard_normal((2, 5))
+    jacobian = np.array([a, b, a])
+    gains = ServoGains(damping_threshold=0.05, max_damping=1e-9)
+    pinv, _, damped = PassivityController(gains, NO_LIMITS).pseudo_inverse(jacobian)
+    assert damped and np.all(np.isfinite(pinv))
+    basis = np.linalg.svd(jacobian)[0][:, :2]
+    np.testing.assert_allclose(jacobian @ pinv, basis @ basis.T, atol=1e-3)
+
+
+def test_upright_row_of_the_wrong_length_is_refused():
+    """``[phi, j_phi]`` has ``n + 1`` entries; with a ``j_phi`` the null space changes."""
+    rng = np.random.default_rng(14)
+    controller = PassivityController(_gains(5, rng), NO_LIMITS)
+    jacobian, object_jacobian, target_velocity, secondary = _random_problem(rng, 5)
+    arguments = (np.zeros(3), jacobian * SCALE, object_jacobian * SCALE, target_velocity, secondary)
+    for length in (5, 7):
+        with pytest.raises(ShapeError, match="upright"):
+            controller.step(*arguments, upright=np.zeros(length))
+    plain = controller.step(*arguments, upright=np.zeros(6))
+    np.testing.assert_array_equal(plain.u, controller.step(*arguments).u)
+    rolled = controller.step(*arguments, upright=np.array([0.3, 1.0, 0.0, 0.0, 0.0, 0.0]))
+    assert not np.allclose(rolled.null_space, plain.null_space)
+
+
 def test_classic_ibvs_law():
     """u = -lambda J# e - J# J_o phat_dot + (I - J# J) k1 tanh(k2 Lambda) (Moore-Penrose)."""
     rng = np.random.default_rng(12)
@@ -360,6 +455,15 @@ def test_gain_vector_of_wrong_length_is_rejected():
         PassivityController(ServoGains(weights=((2.0, 0.0), (0.0, 2.0))), np.ones(5))
     with pytest.raises(GainError, match="velocity_limits"):
         PassivityController(ServoGains(), [1.0, 1.0, -1.0, 1.0, 1.0])
+
+
+def test_feature_gains_follow_the_feature_count():
+    """One ``k_i`` per feature: three gains serve three features and are refused for two, also
+    after a step with three (the gains are kept between steps)."""
+    controller = PassivityController(ServoGains(k=(0.1, 0.2, 0.3)), NO_LIMITS)
+    np.testing.assert_array_equal(controller.feature_gains(3), [0.1, 0.2, 0.3])
+    with pytest.raises(GainError, match=r"k: expected 1 or 2 values, got 3"):
+        controller.feature_gains(2)
 
 
 @pytest.mark.parametrize(

@@ -98,9 +98,19 @@ def test_the_index_leads_to_every_section():
     for page in (
         "getting_started", "gallery", "own_robot", "controller", "scenarios", "faults",
         "analysis", "sweeps", "theory", "design", "style", "api", "internals",
-        "bad_input", "zoo", "rendered_camera",
+        "bad_input", "zoo", "rendered_camera", "mutation",
     ):  # fmt: skip
         assert re.search(rf"^   {page}$", index, re.M), page
+
+
+def test_the_mutation_page_names_tests_that_exist():
+    """Each survivor's killing test on docs/mutation.md is a test of that file."""
+    text = (REPO_ROOT / "docs" / "mutation.md").read_text()
+    tests = set(re.findall(r"`tests/(\w+\.py)::(\w+)`", text))
+    assert len(tests) >= 5
+    for file, test in sorted(tests):
+        source = (REPO_ROOT / "tests" / file).read_text()
+        assert re.search(rf"^def {test}\(", source, re.M), f"tests/{file}::{test}"
 
 
 def test_the_theory_map_names_code_and_tests_that_exist():

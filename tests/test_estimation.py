@@ -163,3 +163,38 @@ def test_invalid_gains_raise_gain_error(alpha, beta):
 def test_invalid_tracking_index_raises_gain_error(tracking_index):
     with pytest.raises(GainError, match="tracking index"):
         AlphaBetaFilter.from_tracking_index(tracking_index)
+
+
+def test_the_beta_error_states_the_stability_bound():
+    """The message gives ``4 - 2 alpha`` for the alpha given (mutation testing, docs/mutation.md)."""
+    with pytest.raises(GainError, match=r"4 - 2 alpha = 3, got 3\.5"):
+        AlphaBetaFilter(0.5, 3.5)
+    with pytest.raises(GainError, match=r"4 - 2 alpha = 2\.4, got 2\.5"):
+        AlphaBetaFilter(0.8, 2.5)
+
+
+@pytest.mark.parametrize("reset", [False, True])
+def test_before_a_measurement_the_estimates_are_zero_3_vectors(reset):
+    filt = AlphaBetaFilter(0.5, 0.1)
+    if reset:
+        filt.update([1.0, 2.0, 3.0], 0.0)
+        filt.update([1.1, 2.0, 3.0], 0.1)
+        filt.reset()
+    for estimate in (filt.position, filt.velocity):
+        assert estimate.shape == (3,)
+        assert not estimate.any()
+    filt.update([1.0, 2.0, 3.0], 5.0)  # after a reset the next measurement starts the track
+    np.testing.assert_array_equal(filt.position, [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(filt.velocity, [0.0, 0.0, 0.0])
+
+
+@pytest.mark.parametrize("alpha", [0.01, 0.5, 1.0])
+def test_the_accepted_gains_are_the_whole_stability_triangle(alpha):
+    """``0 < alpha <= 1`` and ``0 < beta < 4 - 2 alpha`` (the roots of
+    ``z^2 - (2 - alpha - beta) z + (1 - alpha)`` inside the unit circle), up to its edge."""
+    beta = (4.0 - 2.0 * alpha) * (1.0 - 1e-9)
+    roots = np.roots([1.0, -(2.0 - alpha - beta), 1.0 - alpha])
+    assert np.max(np.abs(roots)) < 1.0  # numpy: inside the stability region
+    AlphaBetaFilter(alpha, beta)
+    with pytest.raises(GainError, match="beta"):
+        AlphaBetaFilter(alpha, 4.0 - 2.0 * alpha)

@@ -154,3 +154,53 @@ def test_with_a_hold_a_frame_older_than_it_is_not_used(hold):
         assert np.all(speed[between] == 0.0)
     else:
         assert np.all(speed[between] > 0)  # without a hold the prediction runs on
+
+
+# ---------------------------------------------------------------- the tracker, step by step
+def _tracker(**keys):
+    from pbvs_pin import load_robot
+    from pbvs_pin.control.tracking import TargetTracker
+    from pbvs_pin.estimation import AlphaBetaFilter
+
+    robot = load_robot("pioneer_cyton")
+    values = {"predict": False, "hold": 0.0, "smoothing": 1.0, **keys}
+    return robot, TargetTracker(robot, AlphaBetaFilter(), **values)
+
+
+def _frame(points, depths):
+    from pbvs_pin.features import ImageMeasurement
+
+    return ImageMeasurement(np.array(points, dtype=float), np.array(depths, dtype=float))
+
+
+@pytest.mark.parametrize("smoothing", [0.3, 1.0])
+def test_tracker_smoothing_is_the_first_order_filter_of_its_definition(smoothing):
+    """Still camera, still target: the prediction of the first frame is the first frame, so the
+    second becomes ``x1 + w (x2 - x1)`` on the points and the depths (module docstring)."""
+    robot, tracker = _tracker(smoothing=smoothing)
+    q, still = robot.home(), np.zeros(3)
+    first = ([[10.0, 20.0], [10.0, -30.0]], [0.6, 0.7])  # nearer than 1 m: no depth floor
+    second = ([[14.0, 26.0], [12.0, -20.0]], [0.65, 0.8])
+    tracker.take(_frame(*first), 0.0, q, still)
+    tracker.take(frame := _frame(*second), 0.1, q, still)
+    if smoothing == 1.0:  # no filter: the frame as it arrived
+        assert tracker.measurement is frame
+    for now, before, after in zip(
+        (tracker.measurement.points, tracker.measurement.depths), first, second, strict=True
+    ):
+        expected = np.array(before) + smoothing * (np.array(after) - np.array(before))
+        np.testing.assert_allclose(now, expected, rtol=1e-12, atol=1e-9)
+
+
+def test_tracker_uses_a_frame_until_the_hold_then_nothing():
+    """``hold`` 0.4 s: a fresh frame is used as it is; after a loss the prediction is used up to
+    0.4 s after the last capture, then nothing."""
+    robot, tracker = _tracker(hold=0.4)
+    q, still = robot.home(), np.zeros(3)
+    tracker.take(_frame([[10.0, 20.0], [10.0, -30.0]], [0.6, 0.7]), 0.0, q, still)
+    assert tracker.current(0.1, q, still) is tracker.measurement and not tracker.predicting
+    tracker.take(None, 0.2, q, still)
+    held = tracker.current(0.35, q, still)
+    assert tracker.predicting
+    np.testing.assert_allclose(held.points, tracker.measurement.points, atol=1e-9)
+    assert tracker.current(0.45, q, still) is None and not tracker.predicting

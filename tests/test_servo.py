@@ -294,11 +294,19 @@ def test_packed_servo_step_is_servo_step_with_its_constants_packed(damped):
             mass, tuned, bias, gravity, params, indices, q, v, v_ref, integrals[0], *outputs[:2]
         )
         constants = ServoConstants(
-            inverse_time_constants=1.0 / servo.time_constants, damping=servo.damping,
-            friction=servo.friction, effort=servo.effort, speed_limits=servo.speed_limits,
-            gravity_weight=servo.gravity_weight, integral_rates=servo.integral_rates,
-            lower=servo.lower, upper=servo.upper, selection=damped.selection,
-            friction_speed=servo.friction_speed, h=DT, stop_index=servo.stop_index,
+            inverse_time_constants=1.0 / servo.time_constants,
+            damping=servo.damping,
+            friction=servo.friction,
+            effort=servo.effort,
+            speed_limits=servo.speed_limits,
+            gravity_weight=servo.gravity_weight,
+            integral_rates=servo.integral_rates,
+            lower=servo.lower,
+            upper=servo.upper,
+            selection=damped.selection,
+            friction_speed=servo.friction_speed,
+            h=DT,
+            stop_index=servo.stop_index,
             stop_q_index=servo.stop_q_index,
         )
         direct = servo_step(
@@ -322,3 +330,77 @@ def test_an_arm_that_moves_no_mass_is_refused(tmp_path):
     with pytest.raises(UrdfError, match=r"move no mass") as err:
         ServoModel.from_robot(robot)
     assert all(name in str(err.value) for name in robot.arm_joint_names)
+
+
+def _one_joint(friction: float, integral_rate: float = 0.0, h: float = DT):
+    """:class:`ServoConstants` of a single joint: no damping, no limits, no stops."""
+    from pbvs_pin.servo import FRICTION_SPEED, ServoConstants
+
+    one, empty = np.ones(1), np.zeros(0)
+    return ServoConstants(
+        inverse_time_constants=one / 0.02, damping=0.0 * one, friction=friction * one,
+        effort=np.full(1, np.inf), speed_limits=10.0 * one, gravity_weight=one,
+        integral_rates=integral_rate * one, lower=empty, upper=empty, selection=np.eye(1),
+        friction_speed=FRICTION_SPEED, h=h, stop_index=np.zeros(0, dtype=np.int64),
+        stop_q_index=np.zeros(0, dtype=np.int64),
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(("friction", "v", "r"), [(1.0, 0.02, 0.05), (0.004, -0.003, 0.001)])
+def test_one_step_of_one_joint_is_the_linearly_implicit_equation(friction, v, r):
+    """One joint of inertia M: ``(M + h (K + F')) v1 = M v + h (K r + F tanh(r / w) - F tanh(v /
+    w) + F' v)``, ``F' = F / w (1 - tanh^2(v / w))``, ``K = M / T``, the band ``w = max(v_s,
+    F h / M)`` (servo_step's docstring and FRICTION_SPEED's, written out here)."""
+    from pbvs_pin.servo import FRICTION_SPEED, servo_step
+
+    mass = 0.01  # [kg m^2]: F h / M = 0.1 rad/s for F = 1 N m, above v_s
+    width = max(FRICTION_SPEED, friction * DT / mass)
+    stiffness = mass / 0.02
+    slope = friction / width * (1.0 - np.tanh(v / width) ** 2)
+    rhs = mass * v + DT * (
+        stiffness * r + friction * np.tanh(r / width) - friction * np.tanh(v / width) + slope * v
+    )
+    expected = rhs / (mass + DT * (stiffness + slope))
+    outputs = np.zeros(1), np.zeros(1)
+    zero = np.zeros(1)
+    v_next = servo_step(
+        np.full((1, 1), mass), np.full((1, 1), mass), zero, zero, _one_joint(friction),
+        np.zeros(0), np.array([v]), np.array([r]), np.zeros(1), *outputs,
+    )  # fmt: skip
+    assert v_next[0] == pytest.approx(expected, rel=1e-12)
+    assert outputs[0][0] == v_next[0] and outputs[1][0] == pytest.approx(DT * v_next[0])
+
+
+def test_the_integral_moves_only_where_there_is_integral_action():
+    """``e_{k+1} = e_k + h (r - v_{k+1})`` with ``K' = K (1 + h / T_I)``; none without it."""
+    from pbvs_pin.servo import servo_step
+
+    mass, rate, r = 0.01, 1.0 / (5 * 0.02), 0.05
+    zero = np.zeros(1)
+    for integral_rate in (0.0, rate):
+        integral = np.array([0.002])
+        v_next = servo_step(
+            np.full((1, 1), mass), np.full((1, 1), mass), zero, zero, _one_joint(0.0, integral_rate),
+            np.zeros(0), zero, np.array([r]), integral, zero.copy(), zero.copy(),
+        )  # fmt: skip
+        stiffness = mass / 0.02
+        gain = stiffness * (1 + DT * integral_rate)
+        expected = DT * (gain * r + stiffness * integral_rate * 0.002) / (mass + DT * gain)
+        assert v_next[0] == pytest.approx(expected, rel=1e-12)
+        moved = 0.002 + DT * (r - v_next[0]) if integral_rate else 0.002
+        assert integral[0] == pytest.approx(moved, rel=1e-12)
+
+
+def test_packed_constants_are_the_servos_own(damped):
+    """Each named view of :func:`pack_servos`' buffers holds the servo's field; ``h`` and ``v_s``
+    distinct (4 ms against 1 ms)."""
+    from pbvs_pin.servo import pack_servos, servo_constants
+
+    servo = ServoModel.from_robot(damped)
+    constants = servo_constants(*pack_servos(servo, damped.selection, servo.gravity_weight, 0.004))
+    assert constants.h == 0.004 and constants.friction_speed == servo.friction_speed
+    np.testing.assert_array_equal(constants.inverse_time_constants, 1.0 / servo.time_constants)
+    for name in ("damping", "friction", "effort", "speed_limits", "gravity_weight",
+                 "integral_rates", "lower", "upper", "stop_index", "stop_q_index"):  # fmt: skip
+        np.testing.assert_array_equal(getattr(constants, name), getattr(servo, name), name)
+    np.testing.assert_array_equal(constants.selection, damped.selection)

@@ -16,7 +16,13 @@ from simhelpers import controller_with_first_frame
 
 from pbvs_pin.control.kinematic import PassivityController, ServoGains
 from pbvs_pin.control.step import FusedControlStep
-from pbvs_pin.control.upright import LOOP_GAIN_MARGIN, RESTORING_RATE, upright_row
+from pbvs_pin.control.upright import (
+    LOOP_GAIN_MARGIN,
+    RESTORING_RATE,
+    delayed_margin,
+    loop_gain_factor,
+    upright_row,
+)
 from pbvs_pin.sim import loop
 from pbvs_pin.sim.scenario import load_scenario
 
@@ -87,7 +93,11 @@ def test_base_motion_and_camera_pitch_leave_an_upright_image_upright(load):
 def _setup(name: str, experiment: str = "experiment4", modular: bool = True, **gains):
     """The public controller on ``name`` with a first frame taken, its law's gains replaced."""
     scenario = load_scenario(experiment).with_values(
-        **{"robot.name": name, "camera.latency": 0.0, "estimator.predict": False}  # a frame at once, as it is
+        **{
+            "robot.name": name,
+            "camera.latency": 0.0,
+            "estimator.predict": False,
+        }  # a frame at once, as it is
     )
     setup, control = controller_with_first_frame(scenario, modular)
     if gains:
@@ -143,9 +153,7 @@ def test_reference_robot_output_is_bit_identical_with_and_without():
     Without the camera's latency: the net's margin is then the full one, which the reference
     robot stays below (with one frame of latency the halved margin acts).
     """
-    scenario = load_scenario("experiment2").with_values(
-        duration=3.0, **{"camera.latency": 0.0}
-    )
+    scenario = load_scenario("experiment2").with_values(duration=3.0, **{"camera.latency": 0.0})
     with_feature = loop.simulate(scenario)
     without = loop.simulate(
         scenario.with_values(**{"controller.upright": False, "controller.loop_gain_margin": 1e12})
@@ -173,3 +181,29 @@ def test_fused_step_equals_modular_on_an_arm_that_rolls():
         assert fused_output.upright_weight == output.upright_weight == 1.0
         assert fused_output.gain_limited and output.gain_limited
         assert fused_output.loop_gain == pytest.approx(output.loop_gain, rel=1e-10)
+
+
+# ---------------------------------------------------------------- loop-gain net, by hand
+def test_loop_gain_factor_below_and_above_the_margin():
+    """``g = k T lambda_max``; the factor is 1 up to the margin, then ``margin / g``."""
+    factor, gain = loop_gain_factor(4.0, 0.15, 1.0 / 30.0, 1.0)
+    assert gain == pytest.approx(0.15 / 30.0 * 4.0, rel=1e-12) and factor == 1.0
+    factor, gain = loop_gain_factor(400.0, 0.15, 1.0 / 30.0, 1.0)
+    assert gain == pytest.approx(2.0, rel=1e-12) and factor == pytest.approx(0.5, rel=1e-12)
+    assert loop_gain_factor(1.0, 1.0, 1.0, 1.0) == (1.0, 1.0)  # at the margin: not limited
+
+
+@pytest.mark.parametrize("delay", [0, 1, 2, 3])
+def test_delayed_margin_is_the_stability_limit_of_the_delayed_loop(delay):
+    """``e_{k+1} = e_k - g e_{k-d}``: the roots of ``z^{d+1} - z^d + g`` leave the unit circle
+    at twice the delayed margin (numpy's roots, not the closed form)."""
+    limit = 2.0 * delayed_margin(1.0, delay)
+
+    def spectral_radius(g: float) -> float:
+        return max(
+            abs(np.roots([1.0, -1.0, *([0.0] * (delay - 1)), g] if delay else [1.0, g - 1.0]))
+        )
+
+    assert spectral_radius(0.999 * limit) < 1.0 < spectral_radius(1.001 * limit)
+    assert delayed_margin(0.7, delay) == pytest.approx(0.7 * limit / 2.0, rel=1e-12)
+    assert delayed_margin(1.0, 0) == 1.0 and delayed_margin(1.0, 1) == pytest.approx(0.5)
