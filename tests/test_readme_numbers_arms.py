@@ -1,0 +1,78 @@
+"""The measured numbers in the docs' prose, each recomputed from a fresh run (arms).
+
+The generated blocks (the README's results table, the gallery's MuJoCo table) are checked by
+``test_experiments.py`` and ``test_mujoco_acceptance.py``. The figures in the prose of the docs
+pages are checked here: each test runs the configuration its sentence names, formats the figure
+as the page writes it and looks for the sentence on its page. When one fails, the behaviour
+changed: measure again and update the sentence (or the conclusion drawn from it).
+
+A figure found on its page only shows that the page was updated. Each test also bounds its
+figures by what the sentence concludes from them, independently of the page: the report's
+3 px oscillation flag (:data:`OSCILLATION_FLAG_PX`), the loop-gain margin, one run against
+another ("prediction lowers it", "the home does better").
+"""
+
+from __future__ import annotations
+
+from docs_figures import (
+    EXPERIMENTS,
+    run,
+    stated,
+)
+
+from pbvs_pin import load_robot
+from pbvs_pin.catalogue import ROBOT_NAMES
+
+
+def test_the_image_rolls_without_the_upright_constraint():
+    paper_posture = {"controller.upright": False, "secondary.posture_target": "max_manipulability"}
+    panda, panda_figures = run("experiment4", **{"robot.name": "pioneer_panda"}, **paper_posture)
+    assert panda["target_lost_samples"] > 0
+    stated(
+        f"rolled the Panda's image by {abs(panda_figures['upright_min_deg']):.0f} deg, and the "
+        "target was lost"
+    )
+    tiago, tiago_figures = run("experiment4", **{"robot.name": "tiago"}, **paper_posture)
+    upright = run(
+        "experiment4", **{"robot.name": "tiago", "secondary.posture_target": "max_manipulability"}
+    )[0]
+    assert tiago["target_lost_samples"] == 0
+    stated(
+        f"TIAGo's rolled by {abs(tiago_figures['upright_min_deg']):.0f} deg and ended "
+        f"{tiago['max_abs_error_final_window_px']:.1f} px off "
+        f"({upright['max_abs_error_final_window_px']:.1f} px with it)"
+    )
+    assert panda_figures["upright_min_deg"] < -45.0 and tiago_figures["upright_min_deg"] < -5.0
+    error = "max_abs_error_final_window_px"
+    assert upright[error] < tiago[error]  # the upright constraint does better
+
+
+def test_the_posture_target():
+    def final(robot: str, target: str) -> float:
+        values = {"robot.name": robot, "secondary.posture_target": target}
+        return run("experiment4", **values)[0]["max_abs_error_final_window_px"]
+
+    stated(
+        f"xArm7 Experiment 4 ended up to {final('pioneer_xarm7', 'max_manipulability'):.1f} px "
+        f"off over the last 5 s and TIAGo's {final('tiago', 'max_manipulability'):.1f} px, "
+        f"against {final('pioneer_xarm7', 'home'):.2f} and {final('tiago', 'home'):.2f} px "
+        "with the home"
+    )
+    for robot in ("pioneer_xarm7", "tiago"):
+        assert final(robot, "home") < final(robot, "max_manipulability")
+
+
+def test_the_net_on_six_and_seven_joint_arms():
+    arms = [name for name in ROBOT_NAMES if load_robot(name).n_arm in (6, 7)]
+    assert len(arms) >= 4
+    acting = {
+        name: [run(experiment, **{"robot.name": robot})[1]["gain_limited"] for robot in arms]
+        for name, experiment in zip("1234", EXPERIMENTS, strict=True)
+    }
+    first_three = acting["1"] + acting["2"] + acting["3"]
+    stated(
+        f"it acts in {min(first_three) * 100:.0f}-{max(first_three) * 100:.0f} % of the samples "
+        f"of Experiments 1-3 ({min(acting['4']) * 100:.0f}-{max(acting['4']) * 100:.0f} % in "
+        "Experiment 4)"
+    )
+    assert min(first_three) > 0.5 and max(first_three + acting["4"]) <= 1.0
