@@ -8,6 +8,7 @@ never from the servo code under test.
 
 from __future__ import annotations
 
+import itertools
 import re
 import xml.etree.ElementTree as ET
 
@@ -404,3 +405,69 @@ def test_packed_constants_are_the_servos_own(damped):
                  "integral_rates", "lower", "upper", "stop_index", "stop_q_index"):  # fmt: skip
         np.testing.assert_array_equal(getattr(constants, name), getattr(servo, name), name)
     np.testing.assert_array_equal(constants.selection, damped.selection)
+
+
+def _active_sets(mass, bias, v, r, effort, positions, lower, upper):
+    """Every ``v_{k+1}`` that a choice of saturated servos and acting stops makes consistent.
+
+    The frictionless, undamped servos of ``servo_step``'s docstring written out: ``(M + h K)
+    v1 = M v - h b + h K r`` on a free row, ``h (+-effort)`` in place of ``h K (r - v1)`` on a
+    saturated one, ``v1_i = (limit - q_i) / h`` on a stopped one; ``K_i = sum_j |M_ij| / T``.
+    Consistent: a free servo's torque within its effort, a saturated one's beyond it with its
+    sign; a free joint within its limits; a stop's reaction pushing away from its limit.
+    """
+    n, h, time_constant = len(v), DT, 0.02
+    gains = np.abs(mass).sum(axis=1) / time_constant
+    found = []
+    for saturated in itertools.product((-1, 0, 1), repeat=n):
+        for stopped in itertools.product((-1, 0, 1), repeat=n):
+            lhs, rhs = mass.copy(), mass @ v - h * bias
+            for i in range(n):
+                if saturated[i]:
+                    rhs[i] += h * saturated[i] * effort[i]
+                else:
+                    lhs[i, i] += h * gains[i]
+                    rhs[i] += h * gains[i] * r[i]
+            free_lhs, free_rhs = lhs.copy(), rhs.copy()
+            for i in np.flatnonzero(stopped):
+                limit = upper[i] if stopped[i] > 0 else lower[i]
+                lhs[i], lhs[i, i], rhs[i] = 0.0, 1.0, (limit - positions[i]) / h
+            v1 = np.linalg.solve(lhs, rhs)
+            torque = gains * (r - v1)
+            landed = positions + h * v1
+            consistent = all(
+                (abs(torque[i]) <= effort[i] if not saturated[i]
+                 else abs(torque[i]) > effort[i] and np.sign(torque[i]) == saturated[i])
+                and (lower[i] <= landed[i] <= upper[i] if not stopped[i]
+                     else (free_lhs[i] @ v1 - free_rhs[i]) * stopped[i] <= 0.0)
+                for i in range(n)
+            )  # fmt: skip
+            if consistent:
+                found.append(v1)
+    return found
+
+
+def test_a_stop_set_and_released_in_one_step_gives_the_consistent_active_set():
+    """Two coupled joints near their limits: the first pass stops a joint whose stop, once the
+    other servo saturates, would pull it into its limit; the step must release it again and
+    solve once more. The reference enumerates every active set (``_active_sets``)."""
+    from pbvs_pin.servo import FRICTION_SPEED, ServoConstants, servo_step
+
+    mass = np.array([[1.1362882, -0.56372767], [-0.56372767, 0.37876809]])
+    bias = np.array([0.08807699, -0.31913038])
+    v, r = np.array([0.23360645, -0.34348303]), np.array([2.5861039, -2.75693573])
+    effort, positions = np.array([2.45194083, 1.23862731]), np.array([0.9990094, -0.99961765])
+    lower, upper, zero = np.full(2, -1.0), np.full(2, 1.0), np.zeros(2)
+    constants = ServoConstants(
+        inverse_time_constants=np.full(2, 1 / 0.02), damping=zero, friction=zero, effort=effort,
+        speed_limits=np.full(2, 3.0), gravity_weight=np.ones(2), integral_rates=zero,
+        lower=lower, upper=upper, selection=np.eye(2), friction_speed=FRICTION_SPEED, h=DT,
+        stop_index=np.arange(2), stop_q_index=np.arange(2),
+    )  # fmt: skip
+    expected = _active_sets(mass, bias, v, r, effort, positions, lower, upper)
+    assert len(expected) == 1
+    v_next = servo_step(
+        mass, mass, bias, zero, constants, positions, v.copy(), r, zero.copy(), zero.copy(),
+        zero.copy(),
+    )  # fmt: skip
+    np.testing.assert_allclose(v_next, expected[0], rtol=1e-12, atol=1e-12)
