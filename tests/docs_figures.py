@@ -3,8 +3,9 @@
 The generated blocks (the README's results table, the gallery's MuJoCo table) are checked by
 ``test_experiments.py`` and ``test_mujoco_acceptance.py``. The figures in the prose of the docs
 pages are checked by the tests using this module: each runs the configuration its sentence
-names, formats the figure as the page writes it and looks for the sentence on its page. When one fails, the behaviour
-changed: measure again and update the sentence (or the conclusion drawn from it).
+names, formats the figure as the page writes it and looks for the sentence on its page. When
+one fails, the behaviour changed: measure again and update the sentence (or the conclusion
+drawn from it).
 
 A figure found on its page only shows that the page was updated. Each test also bounds its
 figures by what the sentence concludes from them, independently of the page: the report's
