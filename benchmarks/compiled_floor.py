@@ -242,7 +242,7 @@ def kernel_arithmetic() -> dict[str, float]:
     tracker.take(ImageMeasurement(points, depths), 0.0, q, np.zeros(3))
     pose = setup.model.camera_placement(q)
     projection = (
-        tracker._world, pose.translation.copy(), pose.rotation.copy(),
+        tracker.world, pose.translation.copy(), pose.rotation.copy(),
         setup.model.camera.focal_px, 0.0,
     )  # fmt: skip
     kernels = {"servo": (packed_servo_step, servo), "sensing": (sensing_step, reading)}

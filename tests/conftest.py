@@ -312,4 +312,3 @@ def cyton_urdf() -> Path:
 def closed_form(cyton_urdf) -> CytonClosedForm:
     """Hand-written kinematics of the reference robot, offsets parsed from its URDF."""
     return CytonClosedForm(cyton_urdf)
-

@@ -29,7 +29,6 @@ capture time and the encoders at that time.
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 
 from pbvs_pin.camera import back_project_points, project_points
 from pbvs_pin.estimation import VelocityEstimator
@@ -51,8 +50,11 @@ class TargetTracker:
         measurement: The newest measurement of the target (None before the first).
         capture_time: Its capture time [s] (-inf before the first).
         lost: The newest frame did not show the target.
-        used: What the controller servoes on now (set by :meth:`current`; None: nothing).
+        used: What the controller servoes on now (set by :meth:`current`, or by the caller of
+            :meth:`choose`; None: nothing).
         predicting: ``used`` is a prediction rather than the newest measurement.
+        world: The newest measurement's points in the world, where its frame saw them [m].
+            Shape (k, 3).
     """
 
     def __init__(
@@ -71,9 +73,8 @@ class TargetTracker:
         self.lost = False
         self.used: ImageMeasurement | None = None
         self.predicting = False
-        self._world = np.zeros((0, 3))
+        self.world = np.zeros((0, 3))
         self._focal = model.camera.focal_px
-        """The newest measurement's points in the world, where its frame saw them [m]."""
 
     def take(
         self,
@@ -104,22 +105,19 @@ class TargetTracker:
         self.measurement, self.capture_time = measurement, capture_time
         pose = model.camera_placement(q_capture)
         in_camera = back_project_points(measurement.points, measurement.depths, self._focal)
-        self._world = in_camera @ pose.rotation.T + pose.translation
+        self.world = in_camera @ pose.rotation.T + pose.translation
         self.estimator.update(pose.act(in_camera.mean(axis=0)), capture_time)
 
-    def current(
-        self, t: float, q: np.ndarray, velocity: np.ndarray, placement: pin.SE3 | None = None
-    ) -> ImageMeasurement | None:
+    def current(self, t: float, q: np.ndarray, velocity: np.ndarray) -> ImageMeasurement | None:
         """What the controller servoes on at ``t``: the measurement, its prediction, or None.
 
         Args:
             t: Time [s].
             q: Encoder configuration now. Shape (nq,).
             velocity: The target velocity to predict with [m/s]. Shape (3,).
-            placement: The model's camera placement at ``q`` if already computed.
         """
         chosen = self.choose(t)
-        self.used = self.predicted(t, q, velocity, placement) if self.predicting else chosen
+        self.used = self.predicted(t, q, velocity) if self.predicting else chosen
         return self.used
 
     def choose(self, t: float) -> ImageMeasurement | None:
@@ -136,22 +134,15 @@ class TargetTracker:
         self.predicting = self.measurement is not None and (held or (self.predict and fresh))
         return self.measurement if self.predicting or fresh else None
 
-    @property
-    def world(self) -> np.ndarray:
-        """The newest measurement's points in the world, where its frame saw them [m] (k, 3)."""
-        return self._world
-
-    def predicted(
-        self, t: float, q: np.ndarray, velocity: np.ndarray, placement: pin.SE3 | None = None
-    ) -> ImageMeasurement:
+    def predicted(self, t: float, q: np.ndarray, velocity: np.ndarray) -> ImageMeasurement:
         """The newest measurement brought up to ``(t, q)`` along eq. (3) (module docstring).
 
-        ``placement`` is the model's camera placement at ``q`` if already computed.
+        The compiled control step computes the same prediction itself
+        (:func:`~pbvs_pin.control.step.fused_control_step`).
         """
         model = self.model
-        world = self._world + velocity * (t - self.capture_time)
-        if placement is None:
-            placement = model.camera_placement(q)
+        world = self.world + velocity * (t - self.capture_time)
+        placement = model.camera_placement(q)
         image, depths = project_points(  # eq. (2); the hot path's inputs are valid already
             world, placement.translation, placement.rotation, model.camera.focal_px, 0.0
         )
