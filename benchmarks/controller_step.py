@@ -6,8 +6,11 @@ over 10 000 calls of a 1 kHz loop (the configuration moving every call, a frame 
 arriving one frame period after its capture, so that every step predicts), and the Pinocchio
 calls one step makes (joint Jacobians, camera placement and Jacobian, CRBA, nonlinear
 effects, gravity), timed the same way in the same run; it prints the medians, the 99th
-percentiles and the median ratio. Then the time a freshly built controller took to build
-(compiling or loading its kernels) and its first step.
+percentiles and the median ratio. Then the median of the controller's compiled step alone
+(:meth:`FusedControlStep.step`: those Pinocchio calls and one compiled call predicting the
+frame, without the input checks, the encoder history, the tracker or the command object): the
+floor of this structure, Pinocchio called from Python. Last, the time a freshly built
+controller took to build (compiling or loading its kernels) and its first step.
 
 With ``--previous PATH`` (a checkout of another version of the package), it also runs the
 closed loop (Experiment 1 on the reference robot, 10 s at a 1 kHz controller, setup not
@@ -99,10 +102,19 @@ def step_and_calls(robot_name: str) -> dict[str, float]:
     calls = per_call(
         lambda k: control_step_calls(pin_model, data, frame, configurations[k], v_pin), total
     )[WARM_UP:]
+    fused, tracker, laser = controller.fused, controller.tracker, controller.laser
+    velocity, measurement = tracker.estimator.velocity, tracker.measurement
+    floor = per_call(
+        lambda k: fused.step(
+            configurations[k], v, measurement, velocity, laser, 1 / RATE, (tracker.world, 0.033)
+        ),
+        total,
+    )[WARM_UP:]
     return {
         "step_median": float(np.median(steps)), "step_p99": float(np.percentile(steps, 99)),
         "calls_median": float(np.median(calls)), "calls_p99": float(np.percentile(calls, 99)),
         "ratio": float(np.median(steps) / np.median(calls)), "built": built, "first": first,
+        "floor_median": float(np.median(floor)),
     }  # fmt: skip
 
 
@@ -128,12 +140,13 @@ def main() -> None:
     args = parser.parse_args()
     print(f"Controller.step over {CALLS} calls at 1 kHz (frames one period late) [us]:")
     print(f"{'robot':<16}{'step median':>12}{'step p99':>10}{'pinocchio median':>18}"
-          f"{'pinocchio p99':>15}{'ratio':>7}{'build [s]':>11}{'first step':>12}")  # fmt: skip
+          f"{'pinocchio p99':>15}{'ratio':>7}{'compiled step alone':>21}{'build [s]':>11}"
+          f"{'first step':>12}")  # fmt: skip
     for name in ("pioneer_cyton", "pioneer_xarm7"):
         r = step_and_calls(name)
         print(f"{name:<16}{r['step_median']:>12.1f}{r['step_p99']:>10.1f}"
               f"{r['calls_median']:>18.1f}{r['calls_p99']:>15.1f}{r['ratio']:>7.2f}"
-              f"{r['built']:>11.2f}{r['first']:>12.1f}")  # fmt: skip
+              f"{r['floor_median']:>21.1f}{r['built']:>11.2f}{r['first']:>12.1f}")  # fmt: skip
     if args.previous is not None:
         now, before = closed_loop(args.previous.resolve())
         print(f"closed loop, 1 kHz controller: {now:.1f}x real time; previous {before:.1f}x")

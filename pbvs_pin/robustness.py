@@ -130,11 +130,19 @@ def _faults(rows: list[dict[str, Any]]) -> list[str]:
     return list(dict.fromkeys(r["fault"] for r in rows))
 
 
+MAP_STYLES = {
+    "without": ("tab:red", "o", "without fault handling"),
+    "with": ("tab:blue", "s", "with fault handling (predict, hold, smooth)"),
+}
+"""Colour, marker and label of each variant in :func:`plot_map`."""
+
+
 def plot_map(rows: list[dict[str, Any]], path: Path, threshold_px: float = 10.0) -> Path:
     """Draw the map to ``path``: one panel per fault, error [px] against the fault's size.
 
     Both variants per panel, the threshold drawn, each variant's breaking point marked by a
-    dotted line and lost-target runs by a cross; log-y.
+    dotted line and named in the panel's title, lost-target runs by a cross; log-y; one legend
+    for the figure.
     """
     import matplotlib
 
@@ -145,38 +153,43 @@ def plot_map(rows: list[dict[str, Any]], path: Path, threshold_px: float = 10.0)
     faults = _faults(rows)
     columns = min(2, len(faults))
     grid = (math.ceil(len(faults) / columns), columns)
-    fig, axes = plt.subplots(*grid, figsize=(6.0 * columns, 5.2 * grid[0]), squeeze=False)
-    styles = {"without": ("tab:red", "o", "without fault handling"),
-              "with": ("tab:blue", "s", "with fault handling (predict, hold, smooth)")}  # fmt: skip
+    fig, axes = plt.subplots(*grid, figsize=(6.0 * columns, 4.6 * grid[0]), squeeze=False)
     for ax in axes.flat[len(faults) :]:
         ax.set_visible(False)
     for ax, fault in zip(axes.flat, faults, strict=False):
         unit, field = next((r["unit"], r["field"]) for r in rows if r["fault"] == fault)
+        breaks = []
         for variant in VARIANTS:
-            color, marker, label = styles[variant]
+            color, marker, label = MAP_STYLES[variant]
             mine = [r for r in rows if r["fault"] == fault and r["variant"] == variant]
-            sizes = [r["size"] for r in mine]
             errors = [min(r["error_px"], 1e4) for r in mine]
-            ax.plot(sizes, errors, marker=marker, color=color, label=label)
+            ax.plot([r["size"] for r in mine], errors, marker=marker, color=color, label=label)
             lost = [(r["size"], min(r["error_px"], 1e4)) for r in mine if r["lost"]]
             if lost:
-                ax.scatter(*zip(*lost, strict=True), marker="x", s=80, color="k", zorder=3)
+                ax.scatter(*zip(*lost, strict=True), marker="x", s=80, color="k", zorder=3,
+                           label="target lost in the last 5 s")  # fmt: skip
             first = breaking_point(rows, fault, variant)
             if first is not None:
-                ax.axvline(first, color=color, linestyle=":", linewidth=1.5,
-                           label=f"{label}: breaks at {first:g} {unit}".rstrip())  # fmt: skip
+                ax.axvline(first, color=color, linestyle=":", linewidth=1.5)
+            top = max(r["size"] for r in mine)
+            at = f"not up to {top:g} {unit}" if first is None else f"{first:g} {unit}"
+            breaks.append(f"{variant}: {at.rstrip()}")
         ax.axhline(threshold_px, color="gray", linestyle="--", label=f"{threshold_px:g} px limit")
         ax.set_yscale("log")
         # plain numbers (2, 30, 500) rather than 2x10^0 on the log axis
         ax.yaxis.set_major_formatter(LogFormatter(labelOnlyBase=False))
         ax.yaxis.set_minor_formatter(LogFormatter(labelOnlyBase=False, minor_thresholds=(2, 0.4)))
-        ax.set_title(fault)
+        ax.set_title(f"{fault}\nbreaks (dotted) {'; '.join(breaks)}")
         ax.set_xlabel(f"{field} [{unit or '-'}]")
         ax.set_ylabel("max |error| over the last 5 s [px]")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), fontsize=8, ncol=2)
-    fig.suptitle("Robustness map, Experiment 1 (x: target lost in the last 5 s)")
-    fig.tight_layout(h_pad=4.0)
+    legend = {}
+    for ax in axes.flat[: len(faults)]:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            legend.setdefault(label, handle)
+    fig.legend(legend.values(), legend.keys(), loc="lower center", ncol=2, fontsize=9)
+    fig.suptitle("Robustness map, Experiment 1")
+    fig.tight_layout(h_pad=2.0, rect=(0.0, 0.07, 1.0, 1.0))
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path

@@ -106,29 +106,6 @@ def test_reproduce_refuses_an_unknown_robot_before_running(capsys, tmp_path):
 
 
 # ---------------------------------------------------------------- compile notice, progress
-def test_compile_notice_only_with_a_cold_cache(tmp_path):
-    """A fresh NUMBA_CACHE_DIR is cold: one notice line; the second process finds it warm."""
-    script = (
-        "from pbvs_pin.compile_cache import compile_notice, kernels_cached;"
-        "import sys; printed = compile_notice(sys.stdout);"
-        "from pbvs_pin.sim.loop import simulate;"
-        "from pbvs_pin.sim.scenario import load_scenario;"
-        "simulate(load_scenario('experiment1').with_values(duration=0.1));"
-        "print('warm after run:', kernels_cached())"
-    )
-    env = {**os.environ, "PYTHONPATH": str(REPO_ROOT), "NUMBA_CACHE_DIR": str(tmp_path)}
-    runs = [
-        subprocess.run(
-            [sys.executable, "-c", script], capture_output=True, text=True, env=env, check=True
-        ).stdout
-        for _ in range(2)
-    ]
-    assert runs[0].startswith("compiling the control kernels (once, about ")
-    assert runs[0].rstrip().endswith("warm after run: True")
-    assert "compiling" not in runs[1]
-    assert list(tmp_path.rglob("*.nbi"))
-
-
 def test_progress_is_labelled_with_scenario_robot_and_law(tmp_path):
     scenario = _scenario_file(tmp_path, 1.0)
     text = scenario.read_text().replace('name = "pioneer_cyton"', 'name = "pioneer_ur5"')

@@ -1,7 +1,9 @@
 """Numba's cache is keyed on every kernel's source: an edited kernel never runs stale code.
 
 The fused control step compiles kernels of other modules into itself; Numba alone checks a
-cached function against its own file only. These tests edit a kernel in a copy of the package.
+cached function against its own file only. These tests edit a kernel in a copy of the package,
+and check the notice a cold cache prints (one cold compile of the simulator's kernels, one of
+the controller's after the edit).
 """
 
 import os
@@ -19,6 +21,17 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 CLAMP = "v_ref[i] = min(max(value, -limits[i]), limits[i])"
 """A line of eq. (20)'s kernel, which the fused step inlines from another module."""
 
+NOTICE = """
+import sys
+from pbvs_pin.compile_cache import compile_notice, kernels_cached
+compile_notice(sys.stdout)
+"""
+SIMULATE = """
+from pbvs_pin.sim.loop import simulate
+from pbvs_pin.sim.scenario import load_scenario
+simulate(load_scenario("experiment1").with_values(duration=0.1))
+print("warm after run:", kernels_cached())
+"""
 STEP = """
 import numpy as np, pbvs_pin
 robot = pbvs_pin.load_robot("pioneer_cyton")
@@ -52,24 +65,34 @@ def test_the_key_covers_every_kernel_module_and_nothing_else(tmp_path):
     assert cache_key(package) != key
 
 
-def test_an_edited_inlined_kernel_is_recompiled_not_served_from_the_cache(tmp_path):
-    """Warm the cache, break eq. (20)'s clamp in the copy: the next process sees the edit."""
+def test_a_cold_cache_is_announced_warmed_and_an_edited_kernel_recompiled(tmp_path):
+    """One compile notice with a cold cache and none once the run warmed it; then eq. (20)'s
+    clamp broken in the copy: the notice again, and the next process runs the edit."""
     package = copy_package(tmp_path)
     env = {**os.environ, "PYTHONPATH": str(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
 
-    def v_ref() -> np.ndarray:
+    def run(script: str) -> tuple[list[str], np.ndarray]:
+        """The script's output lines, and ``v_ref`` from its last line."""
         result = subprocess.run(
-            [sys.executable, "-c", STEP], env=env, cwd=tmp_path, capture_output=True,
-            text=True, timeout=600, check=False,
+            [sys.executable, "-c", NOTICE + script], env=env, cwd=tmp_path,
+            capture_output=True, text=True, timeout=600, check=False,
         )  # fmt: skip
         assert result.returncode == 0, result.stderr[-3000:]
-        return np.array([float(x) for x in result.stdout.split()])
+        lines = result.stdout.splitlines()
+        return lines, np.array([float(x) for x in lines[-1].split()])
 
-    before = v_ref()
+    cold, before = run(SIMULATE + STEP)
+    assert cold[0].startswith("compiling the control kernels (once, about ")
+    assert "warm after run: True" in cold
     assert np.abs(before).max() > 1e-3
+    warm, again = run(SIMULATE + STEP)
+    assert not any("compiling" in line for line in warm)
+    np.testing.assert_array_equal(again, before)
     kernel = package / "control" / "compensation.py"
     text = kernel.read_text()
     assert CLAMP in text
     kernel.write_text(text.replace(CLAMP, "v_ref[i] = 0.0"))
-    np.testing.assert_array_equal(v_ref(), 0.0)
+    edited, after = run(STEP)
+    assert edited[0].startswith("compiling the control kernels")
+    np.testing.assert_array_equal(after, 0.0)
     assert len(list((tmp_path / "cache").iterdir())) == 2  # one keyed cache per source

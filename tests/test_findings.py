@@ -82,7 +82,7 @@ def test_compensation_says_what_it_changes_and_where_it_is_worse():
         modes.append(summary(name, final=off, compensation="off", velocity_tracking_rms=0.05))
         modes.append(summary(name, final=on, compensation="platform", velocity_tracking_rms=0.049))
     text = findings_section([summary("experiment1")], [], [], modes, [])
-    assert "changes the velocity error by less than 2 %" in text
+    assert "changes the velocity error by at most 2.0 % (it rises in none of the 2 experiments)" in text
     assert "RMS of abs(v - u) 0.0500 -> 0.0490, 0.0500 -> 0.0490" in text
     assert "It makes the error worse in Experiment 2 (6.14 against 3.77 px)." in text
     assert "worse in Experiment 1" not in text

@@ -107,3 +107,24 @@ def test_command_line_reuses_the_runs_and_writes_the_page(short_zoo, tmp_path, c
     assert status == 0
     assert "3 runs in" in capsys.readouterr().out
     assert "stretch_re1" in page.read_text() and "no_such_link" in page.read_text()
+
+
+def test_vega_asks_for_a_loop_gain_the_net_must_cut_in_experiment4():
+    """docs/zoo.rst's diagnosis of Vega-1's Experiment 4: with the shipped gains, the loop
+    gain ``g = k T lambda_max(J J^T)`` its Jacobian asks for is above 2, the sampled loop's
+    stability limit, in almost every sample, so the net cuts every feature gain (to at most
+    half) and the 0.5 px tracking rule is out of reach with one gain for all directions."""
+    vega = next(robot for robot in load_zoo(ROBOTS) if robot.name == "vega_1")
+    values = {f"robot.{key}": value for key, value in vega.table.items()} | {"robot.name": ""}
+    scenario = load_scenario("experiment4").with_values(**values, duration=10.0)
+    with pytest.warns(UserWarning, match="below the floor"):  # its wheels, at the mount
+        robot = RobotSection.from_toml(vega.table, str(vega.path)).build(
+            scenario.camera.intrinsics()
+        )
+    log = simulate(scenario, robot=robot)
+    asked = float(np.median(log["loop_gain"][np.isfinite(log["loop_gain"])]))
+    share = float(np.mean(log["gain_limited"]))
+    assert asked > 2.0 and share > 0.95
+    page = " ".join((ROBOTS.parent / "docs" / "zoo.rst").read_text().split())
+    sentence = f"asks for a loop gain of {asked:.1f} (median over its first 10 s; the net cut the gains in {100 * share:.1f} % of them)"
+    assert sentence in page, f"docs/zoo.rst no longer says {sentence!r}: measure again"
