@@ -437,12 +437,10 @@ class Controller:
             if measurement is not None:
                 self._diagnostics = None
                 predict_from = None
-                if tracker.predicting:
+                if tracker.predicting:  # the step writes the prediction into measurement
                     predict_from = (tracker.world, t - tracker.capture_time)
                 u, v_ref, v2 = fused.step(q, v, measurement, velocity, self.laser, dt, predict_from)
-                tracker.used = fused.predicted if tracker.predicting else measurement
                 return u, v_ref, v2, fused.views.xi - self.xi_d, True
-            tracker.used = None
             fused.restart_derivative()  # the command derivative restarts after a loss
         else:
             measurement = tracker.current(t, q, velocity)

@@ -8,8 +8,8 @@ and the dynamic compensation of eq. (20) (:mod:`pbvs_pin.control.compensation`).
 :class:`FusedControlStep` packs the controller's model, gains and built-in secondary
 objectives once, in the buffers named by :mod:`pbvs_pin.control.layout`; then each step makes
 its Pinocchio calls and one call of :func:`fused_control_step`, which also brings the newest
-frame up to now when the tracker predicts (:mod:`pbvs_pin.control.tracking`: the same
-compiled projection, eq. (2), as the modular path's). A scenario with the IBVS
+frame up to now when the tracker predicts (:func:`pbvs_pin.control.tracking.predict_points`,
+which the modular path calls too). A scenario with the IBVS
 baseline or a user-defined objective uses the modular classes.
 
 The equations' kernels are declared ``inline="always"``: Numba compiles their bodies into the
@@ -30,7 +30,6 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from pbvs_pin.camera import project_points
 from pbvs_pin.control import layout
 from pbvs_pin.control.compensation import (
     DynamicCompensator,
@@ -49,6 +48,7 @@ from pbvs_pin.control.secondary import (
     obstacle_force,
     posture_term,
 )
+from pbvs_pin.control.tracking import predict_points
 from pbvs_pin.control.upright import Safety, upright_row
 from pbvs_pin.features import ImageMeasurement, feature_jacobians
 from pbvs_pin.linalg import matmul
@@ -134,8 +134,8 @@ def fused_control_step(
             secondary[0] -= impedance[0]
             secondary[n_base - 1] += impedance[1]
     if not np.isnan(age):  # the prediction: the frame's points moved by phat_dot, eq. (2) at q
-        image, image_depths = project_points(
-            world + target_velocity * age, translation, rotation, setting.focal, 0.0
+        image, image_depths = predict_points(
+            world, target_velocity, age, translation, rotation, setting.focal
         )
         points[:, :] = image
         depths[:] = image_depths
@@ -274,9 +274,6 @@ class FusedControlStep:
         self._u, self._v_ref, self._scalars = self.views.u, self.views.v_ref, self.views.scalars
         self._v2 = layout.slot(layout.StepScalars, "v2")
         self._has_previous = layout.slot(layout.StepScalars, "has_previous")
-        points = features.n_points
-        self.predicted = ImageMeasurement(np.zeros((points, 2)), np.ones(points))
-        """The last prediction servoed on (overwritten by the next step that predicts)."""
         self._pinocchio = (
             model.model,
             model.data,
@@ -311,13 +308,15 @@ class FusedControlStep:
         Args:
             q: Configuration. Shape (nq,).
             v: Measured actuated velocity. Shape (n,).
-            measurement: The measurement to servo on; ignored with ``predict_from``.
+            measurement: The measurement to servo on; with ``predict_from``, the buffers the
+                prediction is written into (:attr:`TargetTracker.prediction
+                <pbvs_pin.control.tracking.TargetTracker.prediction>`).
             target_velocity: ``phat_dot`` [m/s]. Shape (3,).
             laser: ``[d, alpha]``. Shape (2,).
             dt: Control period [s].
             predict_from: The newest frame's points in the world [m] (k, 3) and their age
-                [s]: servo on their prediction (:mod:`~pbvs_pin.control.tracking`), left in
-                :attr:`predicted`.
+                [s]: servo on their prediction (:func:`~pbvs_pin.control.tracking.predict_points`),
+                written into ``measurement``.
 
         Returns:
             ``u`` (n,), ``v_ref`` (n,), ``V2``: views into a buffer that the next step
@@ -331,15 +330,11 @@ class FusedControlStep:
         np.dot(selection, v, out=v_pin)
         bias = pin.nonLinearEffects(model, data, q, v_pin)
         gravity = pin.computeGeneralizedGravity(model, data, q)
-        if predict_from is None:
-            points, depths, world, age = measurement.points, measurement.depths, _NO_WORLD, NAN
-        else:
-            points, depths = self.predicted.points, self.predicted.depths
-            world, age = predict_from
+        world, age = (_NO_WORLD, NAN) if predict_from is None else predict_from
         fused_control_step(
             jacobian, placement.rotation, placement.translation, mass, bias, gravity, q, v,
-            points, depths, world, age, target_velocity, laser, dt, self.params, self.indices,
-            self.state,
+            measurement.points, measurement.depths, world, age, target_velocity, laser, dt,
+            self.params, self.indices, self.state,
         )  # fmt: skip
         return self._u, self._v_ref, self._scalars[self._v2]
 

@@ -29,11 +29,40 @@ capture time and the encoders at that time.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from pbvs_pin.camera import back_project_points, project_points
 from pbvs_pin.estimation import VelocityEstimator
 from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.robot import MobileManipulator
+
+
+@njit(cache=True, inline="always")
+def predict_points(
+    world: np.ndarray,
+    velocity: np.ndarray,
+    age: float,
+    translation: np.ndarray,
+    rotation: np.ndarray,
+    focal: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The newest frame's points brought up to now (module docstring).
+
+    Moved in the world by ``phat_dot`` over their age, and projected (eq. 2) from the camera's
+    pose now.
+
+    Args:
+        world: The frame's points in the world, where it saw them [m]. Shape (k, 3).
+        velocity: ``phat_dot`` [m/s]. Shape (3,).
+        age: Time since the frame's capture [s].
+        translation: ``wtc`` now [m]. Shape (3,).
+        rotation: ``wRc`` now. Shape (3, 3).
+        focal: Focal length [px].
+
+    Returns:
+        Image points [px], shape (k, 2), and depths [m], shape (k,).
+    """
+    return project_points(world + velocity * age, translation, rotation, focal, 0.0)
 
 
 class TargetTracker:
@@ -50,9 +79,11 @@ class TargetTracker:
         measurement: The newest measurement of the target (None before the first).
         capture_time: Its capture time [s] (-inf before the first).
         lost: The newest frame did not show the target.
-        used: What the controller servoes on now (set by :meth:`current`, or by the caller of
-            :meth:`choose`; None: nothing).
-        predicting: ``used`` is a prediction rather than the newest measurement.
+        used: What the controller servoes on now (set by :meth:`choose`; None: nothing).
+        predicting: ``used`` is :attr:`prediction` rather than the newest measurement.
+        prediction: The buffer the prediction is written into, by :meth:`current` or by the
+            compiled control step (:mod:`pbvs_pin.control.step`); None before the first
+            measurement.
         world: The newest measurement's points in the world, where its frame saw them [m].
             Shape (k, 3).
     """
@@ -73,6 +104,7 @@ class TargetTracker:
         self.lost = False
         self.used: ImageMeasurement | None = None
         self.predicting = False
+        self.prediction: ImageMeasurement | None = None
         self.world = np.zeros((0, 3))
         self._focal = model.camera.focal_px
 
@@ -103,6 +135,10 @@ class TargetTracker:
                 prior.depths + self.smoothing * (measurement.depths - prior.depths),
             )
         self.measurement, self.capture_time = measurement, capture_time
+        if self.prediction is None:
+            self.prediction = ImageMeasurement(
+                np.zeros_like(measurement.points), np.ones_like(measurement.depths)
+            )
         pose = model.camera_placement(q_capture)
         in_camera = back_project_points(measurement.points, measurement.depths, self._focal)
         self.world = in_camera @ pose.rotation.T + pose.translation
@@ -116,15 +152,17 @@ class TargetTracker:
             q: Encoder configuration now. Shape (nq,).
             velocity: The target velocity to predict with [m/s]. Shape (3,).
         """
-        chosen = self.choose(t)
-        self.used = self.predicted(t, q, velocity) if self.predicting else chosen
-        return self.used
+        used = self.choose(t)
+        if self.predicting:
+            predicted = self.predicted(t, q, velocity)
+            used.points[:], used.depths[:] = predicted.points, predicted.depths
+        return used
 
     def choose(self, t: float) -> ImageMeasurement | None:
-        """The measurement to servo on at ``t``, as it is or (``predicting``) predicted.
+        """What to servo on at ``t``, set as :attr:`used`.
 
-        Sets ``predicting``; None: nothing to servo on. The caller that predicts sets
-        ``used`` (:meth:`current` does both).
+        The newest measurement, or (with ``predicting``) :attr:`prediction`, which the caller
+        fills (:meth:`current` does); None: nothing to servo on.
         """
         age = t - self.capture_time
         # with a hold, a frame older than it is no longer used, even if none arrived since
@@ -132,20 +170,18 @@ class TargetTracker:
         held = self.lost and self.hold > 0 and not expired
         fresh = not self.lost and not expired
         self.predicting = self.measurement is not None and (held or (self.predict and fresh))
-        return self.measurement if self.predicting or fresh else None
+        self.used = (
+            self.prediction if self.predicting else (self.measurement if fresh else None)
+        )
+        return self.used
 
     def predicted(self, t: float, q: np.ndarray, velocity: np.ndarray) -> ImageMeasurement:
-        """The newest measurement brought up to ``(t, q)`` along eq. (3) (module docstring).
-
-        The compiled control step computes the same prediction itself
-        (:func:`~pbvs_pin.control.step.fused_control_step`).
-        """
-        model = self.model
-        world = self.world + velocity * (t - self.capture_time)
-        placement = model.camera_placement(q)
-        image, depths = project_points(  # eq. (2); the hot path's inputs are valid already
-            world, placement.translation, placement.rotation, model.camera.focal_px, 0.0
-        )
+        """The newest measurement brought up to ``(t, q)`` along eq. (3) (module docstring)."""
+        placement = self.model.camera_placement(q)
+        image, depths = predict_points(
+            self.world, velocity, t - self.capture_time, placement.translation,
+            placement.rotation, self._focal,
+        )  # fmt: skip
         return ImageMeasurement(image, depths)
 
     def forget(self) -> None:
