@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import site
+import sysconfig
 import time
 import tomllib
 from collections.abc import Callable
@@ -34,6 +36,7 @@ from pbvs_pin.exceptions import PbvsError
 from pbvs_pin.outputs import Output
 from pbvs_pin.report import claim_met
 from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.shipped import urdf_dir
 
 EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
 """The paper's experiments, as shipped scenarios."""
@@ -264,9 +267,21 @@ def errors(rows: list[dict[str, Any]]) -> str:
             key = (row["robot"], row["engine"], row["error"])
             failed.setdefault(key, []).append(row["experiment"])
     return "".join(
-        f"- ``{robot}`` on {engine} ({', '.join(experiments)}): {error}\n"
+        f"- ``{robot}`` on {engine} ({', '.join(experiments)}): {_portable(error)}\n"
         for (robot, engine, error), experiments in failed.items()
     )
+
+
+def _portable(message: str) -> str:
+    """``message`` without this machine's folders.
+
+    An installed package's file is named from the package's folder on (``rtbdata/xacro/...``),
+    a shipped URDF by its file name.
+    """
+    folders = {*site.getsitepackages(), sysconfig.get_paths()["purelib"], str(urdf_dir())}
+    for folder in sorted(folders, key=len, reverse=True):
+        message = message.replace(folder.rstrip("/") + "/", "")
+    return message
 
 
 def add_arguments(parser: argparse.ArgumentParser, output: Callable) -> None:

@@ -128,3 +128,17 @@ def test_vega_asks_for_a_loop_gain_the_net_must_cut_in_experiment4():
     page = " ".join((ROBOTS.parent / "docs" / "zoo.rst").read_text().split())
     sentence = f"asks for a loop gain of {asked:.1f} (median over its first 10 s; the net cut the gains in {100 * share:.1f} % of them)"
     assert sentence in page, f"docs/zoo.rst no longer says {sentence!r}: measure again"
+
+
+def test_errors_name_files_without_this_machines_folders():
+    import sysconfig
+
+    from pbvs_pin.shipped import shipped_urdf
+
+    installed = Path(sysconfig.get_paths()["purelib"]) / "rtbdata" / "xacro" / "irb140.urdf"
+    row = {"robot": "r", "engine": "pinocchio", "experiment": "experiment1",
+           "error": f"{shipped_urdf('pioneer3at')} + {installed}: arm joints move no mass"}  # fmt: skip
+    assert errors([row]) == (
+        "- ``r`` on pinocchio (experiment1): pioneer3at.urdf + rtbdata/xacro/irb140.urdf: "
+        "arm joints move no mass\n"
+    )
