@@ -1,7 +1,8 @@
 """Benchmark: the control step against the Pinocchio calls it makes, and closed-loop speed.
 
-The control step timed is the one the simulation loop runs: :class:`FusedControlStep`
-(secondary objectives, eq. 3, eq. 34 and eq. 20 in one compiled call after its Pinocchio calls).
+The control step timed is the compiled step the public controller makes every step, as the
+simulation loop runs it: :class:`FusedControlStep` (secondary objectives, eq. 3, the
+prediction, eq. 34 and eq. 20 in one compiled call after its Pinocchio calls).
 
 Run: ``python benchmarks/control_step.py``. Prints, per robot, the median time of one full
 control step (kinematic controller, eq. 34, plus dynamic compensation, eq. 20) and of the
@@ -13,9 +14,9 @@ real-time factor of a closed-loop simulation with a 1 kHz controller on the refe
 cost per simulated second against the number of arm joints (a Panda on the reference platform
 with the camera on its link 3 ... 7: 3 ... 7 arm joints), and where the loop's time goes on the
 reference robot: the Pinocchio calls per simulated millisecond that no speed-up removes (the
-floor), the rest of the control step and of the plant step, the sensors' reading
-(:class:`~pbvs_pin.sim.sensing.Sensing`), the prediction of the newest frame to now
-(:class:`~pbvs_pin.control.tracking.TargetTracker`), and everything else in the loop. Medians over
+floor), the rest of the compiled step, the rest of the public controller's step (its checks,
+encoder history, tracker and command), the plant step, the sensors' reading
+(:class:`~pbvs_pin.sim.sensing.Sensing`), and everything else in the loop. Medians over
 repeats: the machine is shared. ``benchmarks/compiled_floor.py`` measures what the step and
 the loop would cost with the Pinocchio calls made from compiled code.
 """
@@ -29,6 +30,7 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
+from pbvs_pin.camera_frame import CameraFrame
 from pbvs_pin.control.step import FusedControlStep, fused_control_step
 from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.plant import Plant
@@ -190,11 +192,12 @@ def plant_step_times(robot_name: str) -> tuple[float, float]:
     return step_time, calls
 
 
-def sensing_and_prediction_times() -> tuple[float, float]:
-    """Median time of one sensor reading and of one prediction to now [s], reference robot.
+def reading_and_controller_times() -> tuple[float, float]:
+    """Median time of one sensor reading and of one public controller step [s], reference robot.
 
     The reading (:meth:`Sensing.read`: encoders, velocity filter, odometry, gyro) on a moving
-    plant; the prediction (:meth:`TargetTracker.current`) of a frame one period old.
+    plant; the step (:meth:`pbvs_pin.Controller.step`) without a new frame, predicting the
+    newest one, as most of the loop's steps are.
     """
     setup = build(load_scenario("experiment1"))
     sensing, plant = Sensing(setup), setup.plant
@@ -206,18 +209,16 @@ def sensing_and_prediction_times() -> tuple[float, float]:
     reading = statistics.median(
         mean_time(lambda: sensing.read(next(clock))) for _ in range(REPEATS)
     )
-    tracker = setup.control.tracker
-    q = plant.q
+    control, q, v = setup.control, plant.q.copy(), np.zeros(setup.robot.n)
     placement = setup.model.camera_pose(q)
     points, depths = setup.model.camera.project_world(placement, setup.target.centres(0.0))
-    tracker.take(ImageMeasurement(points, depths), 0.0, q, np.zeros(3))
-    t = setup.sensor.period
-    velocity = np.zeros(3)
-    prediction = statistics.median(
-        mean_time(lambda: tracker.current(t, q, velocity)) for _ in range(REPEATS)
+    control.step(0.0, q, v, CameraFrame.seen(0.0, points, depths))
+    clock = iter(np.arange(1, 10**7) * 1e-3)
+    step = statistics.median(
+        mean_time(lambda: control.step(next(clock), q, v)) for _ in range(REPEATS)
     )
-    assert tracker.predicting
-    return reading, prediction
+    assert control.tracker.predicting
+    return reading, step
 
 
 def main() -> None:
@@ -248,20 +249,20 @@ def main() -> None:
         print(f"{joints:>10}{n:>4}{1e3 / dof_factor:>17.1f}{dof_factor:>10.1f}x{valid:>7.2f}")
     plant_step, plant_calls = plant_step_times("pioneer_cyton")
     control_step, control_calls, _, _ = steps["pioneer_cyton"]
-    reading, prediction = sensing_and_prediction_times()
+    reading, controller = reading_and_controller_times()
     plant_floor = plant_calls
     loop = 1e-3 / factor
     print("\nwhere a simulated millisecond goes, pioneer_cyton (one control and plant step) [us]:")
     rows = (
-        ("control step: its Pinocchio calls", control_calls),
-        ("control step: the rest (glue, compiled kernel)", control_step - control_calls),
+        ("controller step: its Pinocchio calls", control_calls),
+        ("controller step: its compiled step's glue and kernel", control_step - control_calls),
+        ("controller step: checks, encoder history, tracker, command", controller - control_step),
         ("plant step: its Pinocchio calls", plant_floor),
         ("plant step: the rest (glue, compiled servo kernel)", plant_step - plant_calls),
         ("sensing: encoders, velocity filter, odometry, gyro", reading),
-        ("perception: the newest frame predicted to now", prediction),
         (
-            "loop: the rest (camera, log, Python, cache misses)",
-            loop - control_step - plant_step - reading - prediction,
+            "loop: the rest (camera, frames, log, Python, cache misses)",
+            loop - controller - plant_step - reading,
         ),
         ("total (the closed loop above)", loop),
         ("floor: the Pinocchio calls alone", control_calls + plant_floor),

@@ -133,3 +133,30 @@ def test_each_variant_drops_only_its_own_keys(name):
     values = without(name)
     assert set(values) == set(IDEALISED) - set(IDEALISATIONS[name])
     assert all(values[k] == IDEALISED[k] for k in values)
+
+
+def test_the_report_tables_the_idealised_runs_behind_the_findings():
+    """Every run the findings' idealisation lines count is a row, its inequalities written out."""
+    from pbvs_pin.experiments import _idealised_section
+
+    def result(name: str, lhs27: float) -> dict:
+        return {
+            "scenario": name,
+            "passivity_9": {"lhs_integral_nu_input": -0.05, "rhs_minus_V1_0": -0.06,
+                            "holds": True},
+            "passivity_14": {"lhs_integral_nu_sq": 0.09, "perfect_tracking_rhs_V1_0": 0.06,
+                             "holds_with_beta_1_zero": False},
+            "passivity_27": {"lhs_integral_nu_sq": lhs27, "rhs": 0.1, "holds": lhs27 <= 0.1},
+        }  # fmt: skip
+
+    ideal = {"all": [result(n, 0.09) for n in EXPERIMENTS]}
+    ideal |= {name: [result(n, 0.2) for n in EXPERIMENTS] for name in IDEALISATIONS}
+    text = _idealised_section(ideal)
+    rows = [line for line in text.splitlines() if line.startswith("| ") and "experiment" in line]
+    assert len(rows) == 1 + 4 * (1 + len(IDEALISATIONS))  # the header, then every run
+    assert (
+        "| every idealisation | experiment1 | -0.05 >= -0.06: holds | 0.09 <= 0.06: FAILS | "
+        "0.09 <= 0.1: holds |" in text
+    )
+    assert "| all but no latency | experiment4 | " in text and "0.2 <= 0.1: FAILS |" in text
+    assert _idealised_section(None) == ""

@@ -42,7 +42,7 @@ def plot_analysis(log: RunLog, result: dict[str, Any], folder: Path) -> list[Pat
     lambda_prime, k_min, t1 = result["lambda_prime"], result["k_min"], result["t1_s"]
     paths = []
 
-    fig, ax = plt.subplots(figsize=(7, 3.4))
+    fig, ax = plt.subplots(figsize=(7, 4.0))
     ax.semilogy(t, error_px, label="measured ||e(t)|| (true features)", linewidth=1.2)
     running = suffix_max(gamma_norm, 0.0)
     margin = lambda_prime * k_min - running
@@ -70,7 +70,8 @@ def plot_analysis(log: RunLog, result: dict[str, Any], folder: Path) -> list[Pat
     ax.set_ylabel("||xi - xi_d|| [px]")
     ax.set_title("Ultimate bound (39): predicted vs measured")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8, loc="best")
+    # below the axes: inside, it covered the first second of the measured error
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2)
     fig.tight_layout()
     paths.append(folder / "bound.png")
     fig.savefig(paths[-1], dpi=110)
