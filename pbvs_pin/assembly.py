@@ -33,6 +33,7 @@ from pbvs_pin.exceptions import (
     RobotNotFound,
     UrdfError,
 )
+from pbvs_pin.link_inertia import checked_density, fill_missing_inertias
 from pbvs_pin.shipped import shipped_urdf
 from pbvs_pin.urdf_checks import axisless_joints, check_physics, check_tree
 
@@ -60,6 +61,8 @@ class UrdfSource:
         axisless: Joints written without ``<axis>`` (yourdfpy fills in URDF's default x).
         repaired_inertias: Links whose inertia was repaired on loading
             (:func:`pbvs_pin.urdf_checks.balance_inertia`).
+        filled_inertias: Links given the inertia of their geometry on loading
+            (:func:`pbvs_pin.link_inertia.fill_missing_inertias`).
     """
 
     robot: yourdfpy.Robot
@@ -67,6 +70,7 @@ class UrdfSource:
     package_dirs: tuple[str, ...]
     axisless: frozenset[str] = frozenset()
     repaired_inertias: tuple[str, ...] = ()
+    filled_inertias: tuple[str, ...] = ()
 
     def link_names(self) -> list[str]:
         """Names of all links."""
@@ -190,7 +194,9 @@ def _parse_strictly(path: Path) -> etree._Element:
     return root
 
 
-def load_urdf(source: str | Path, repair_inertia: bool = False) -> UrdfSource:
+def load_urdf(
+    source: str | Path, repair_inertia: bool = False, geometry_density: float | None = None
+) -> UrdfSource:
     """Load a URDF file or an example-robot-data robot with yourdfpy.
 
     Args:
@@ -200,6 +206,9 @@ def load_urdf(source: str | Path, repair_inertia: bool = False) -> UrdfSource:
         repair_inertia: Repair inertias that break the triangle inequality instead of
             refusing them (:func:`pbvs_pin.urdf_checks.balance_inertia`); the links changed
             are in the result's ``repaired_inertias``.
+        geometry_density: Give each link without ``<inertial>`` the inertia of its geometry
+            at this density [kg/m^3] (:mod:`pbvs_pin.link_inertia`); the links are in the
+            result's ``filled_inertias``. None: leave them massless.
 
     Returns:
         The description with mesh paths made absolute.
@@ -210,6 +219,8 @@ def load_urdf(source: str | Path, repair_inertia: bool = False) -> UrdfSource:
             (:mod:`pbvs_pin.urdf_checks`).
         RobotNotFound: If the name is neither a file nor a known robot.
     """
+    if geometry_density is not None:
+        geometry_density = checked_density(geometry_density)
     path, package_dirs = _resolve(source)
     tree = _parse_strictly(path)
     if tree.tag == "robot":
@@ -231,7 +242,12 @@ def load_urdf(source: str | Path, repair_inertia: bool = False) -> UrdfSource:
     _absolute_mesh_paths(robot, path.resolve().parent)
     _resolve_package_uris(robot, package_dirs, path.resolve().parents[:RENAMED_PACKAGE_DEPTH])
     label = str(path) if path.exists() else str(source)
-    return UrdfSource(robot, label, package_dirs, axisless_joints(tree), tuple(repaired))
+    filled = []
+    if geometry_density is not None:
+        filled = fill_missing_inertias(robot, geometry_density, label)
+    return UrdfSource(
+        robot, label, package_dirs, axisless_joints(tree), tuple(repaired), tuple(filled)
+    )
 
 
 def _fixed_chain_poses(robot: yourdfpy.Robot, root: str) -> dict[str, np.ndarray]:
@@ -442,6 +458,7 @@ def mount_arm(platform: UrdfSource, arm: UrdfSource, mount: pin.SE3) -> dict[str
     robot.name = f"{robot.name}_{arm.robot.name}"
     platform.package_dirs = tuple(dict.fromkeys(platform.package_dirs + arm.package_dirs))
     platform.repaired_inertias += tuple(names[link] for link in arm.repaired_inertias)
+    platform.filled_inertias += tuple(names[link] for link in arm.filled_inertias)
     platform.label = f"{platform.label} + {arm.label}"
     return names
 
@@ -489,6 +506,7 @@ def keep_chain(source: UrdfSource, root: str | None, tip: str) -> None:
     robot.links = [link for link in robot.links if link.name in kept]
     robot.joints = [joint for joint in robot.joints if joint in joints]
     source.repaired_inertias = tuple(link for link in source.repaired_inertias if link in kept)
+    source.filled_inertias = tuple(link for link in source.filled_inertias if link in kept)
 
 
 RENAMED_PACKAGE_DEPTH = 3

@@ -134,6 +134,8 @@ class MobileManipulator:
             included), for an independent plant such as :mod:`pbvs_pin.mujoco_plant`; None
             when the robot was built from a Pinocchio model directly.
         repaired_inertias: Links whose inertia was repaired on loading (``repair_inertia``).
+        filled_inertias: Links given the inertia of their geometry on loading
+            (``geometry_density``).
         mounted_links: Links of the arm mounted by :meth:`assemble` (their names in the
             model); empty when the platform carries its own arm.
     """
@@ -188,6 +190,7 @@ class MobileManipulator:
         self.home_arm = np.zeros(self.n_arm)
         self.urdf_xml: str | None = None
         self.repaired_inertias: tuple[str, ...] = ()
+        self.filled_inertias: tuple[str, ...] = ()
         self.mounted_links: tuple[str, ...] = ()
 
     # ------------------------------------------------------------------ builders
@@ -199,6 +202,7 @@ class MobileManipulator:
         base: str | BaseAdapter = "differential",
         camera: CameraIntrinsics | None = None,
         repair_inertia: bool = False,
+        geometry_density: float | None = None,
     ) -> MobileManipulator:
         """Load one URDF that holds platform, arm and camera frame.
 
@@ -211,13 +215,16 @@ class MobileManipulator:
             repair_inertia: Repair inertias that break the triangle inequality
                 (:func:`pbvs_pin.urdf_checks.balance_inertia`) instead of refusing the file;
                 the links changed are in :attr:`repaired_inertias`.
+            geometry_density: Give each link without ``<inertial>`` the inertia of its
+                geometry at this density [kg/m^3] (:mod:`pbvs_pin.link_inertia`); the links
+                are in :attr:`filled_inertias`. None: leave them massless.
 
         Raises:
             UrdfError: Malformed file, or a platform without a usable drive axle.
             FrameNotFound: If ``camera_frame`` does not exist.
             NoMovableJoint: If no joint moves the camera.
         """
-        source = load_urdf(path, repair_inertia)
+        source = load_urdf(path, repair_inertia, geometry_density)
         source.require_link(camera_frame)
         return cls._from_source(source, camera_frame, base, camera)
 
@@ -232,6 +239,7 @@ class MobileManipulator:
         camera: CameraIntrinsics | None = None,
         base_kind: str | BaseAdapter = "differential",
         repair_inertia: bool = False,
+        geometry_density: float | None = None,
         arm_root: str | None = None,
         arm_tip: str | None = None,
     ) -> MobileManipulator:
@@ -251,6 +259,7 @@ class MobileManipulator:
             camera: Intrinsics; the paper's camera by default.
             base_kind: See :meth:`from_urdf`.
             repair_inertia: See :meth:`from_urdf`; applies to the base and the arm.
+            geometry_density: See :meth:`from_urdf`; applies to the base and the arm.
             arm_root: With ``arm_tip``, mount only the arm's chain from this link (placed at
                 ``mount``) down to ``arm_tip``, dropping the rest of the arm's URDF (a second
                 arm, a pedestal); the arm URDF's root link when None.
@@ -265,12 +274,12 @@ class MobileManipulator:
         """
         mount_pose = as_se3("mount", mount)
         optical_pose = as_se3("camera_pose", camera_pose)
-        platform = load_urdf(base, repair_inertia)
+        platform = load_urdf(base, repair_inertia, geometry_density)
         chain = arm_root is not None or arm_tip is not None
         if chain and arm is None:
             raise UrdfError(platform.label, "arm_root and arm_tip need an arm to cut the chain of")
         if arm is not None:
-            arm_source = load_urdf(arm, repair_inertia)
+            arm_source = load_urdf(arm, repair_inertia, geometry_density)
             arm_source.require_link(camera_link)
             if chain:
                 keep_chain(arm_source, arm_root, arm_tip or camera_link)
@@ -309,6 +318,7 @@ class MobileManipulator:
         robot._description = description
         robot.urdf_xml = xml
         robot.repaired_inertias = source.repaired_inertias
+        robot.filled_inertias = source.filled_inertias
         return robot
 
     def write_urdf(self, path: str | Path) -> Path:

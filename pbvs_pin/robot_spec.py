@@ -68,6 +68,7 @@ class RobotTable(Protocol):
     arm_root: str
     arm_tip: str
     repair_inertia: bool
+    geometry_density: float | None
     home: tuple[float, ...] | None
 
     @property
@@ -174,8 +175,9 @@ def _build(spec: RobotTable, camera: CameraIntrinsics | None) -> MobileManipulat
         return build_robot(spec.name, camera)
     if spec.form == "urdf":
         return MobileManipulator.from_urdf(
-            spec.urdf, spec.camera_frame, drive_of(spec), camera, spec.repair_inertia
-        )
+            spec.urdf, spec.camera_frame, drive_of(spec), camera, spec.repair_inertia,
+            spec.geometry_density,
+        )  # fmt: skip
     return MobileManipulator.assemble(
         spec.base,
         spec.arm or None,
@@ -185,6 +187,7 @@ def _build(spec: RobotTable, camera: CameraIntrinsics | None) -> MobileManipulat
         camera=camera,
         base_kind=drive_of(spec),
         repair_inertia=spec.repair_inertia,
+        geometry_density=spec.geometry_density,
         arm_root=spec.arm_root or None,
         arm_tip=spec.arm_tip or None,
     )

@@ -106,7 +106,9 @@ def _check_joints_move_mass(robot: MobileManipulator) -> None:
             robot.source,
             f"arm joints {massless} move no mass (the links below them have no <inertial>): "
             "the simulated servos and the dynamic compensation need the links' masses; "
-            "expected <inertial> with <mass> and <inertia> on each link",
+            "expected <inertial> with <mass> and <inertia> on each link, or set "
+            "geometry_density = 1000.0 in [robot] (geometry_density=1000.0 in Python) to take "
+            "them from the links' collision geometry at that density [kg/m^3]",
         )
 
 

@@ -182,8 +182,10 @@ def test_a_ctrl_c_inside_a_kernel_is_recognised():
     assert not interrupted_in_compiled_code(SystemError("something else"))
 
 
-DURATION_S = 3.0
-"""Simulated time of the interrupted runs."""
+DURATION_S = 12.0
+"""Simulated time of the interrupted runs: about a second of simulation on a quiet 2-core
+machine, so that the five instants during it stay apart by more than the timer's and the
+machine's jitter (with 3 s, 0.25 s of simulation, one instant in six landed after the end)."""
 
 
 def _run_with_ctrl_c(tmp_path, capsys, delay: float | None) -> str:

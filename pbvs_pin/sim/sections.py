@@ -89,6 +89,11 @@ class RobotSection(Section):
         False, "Replace inertias breaking I1 + I2 >= I3 by their mean principal moment "
         "(MuJoCo's balanceinertia); the links changed go to the run's meta.",
     )  # fmt: skip
+    geometry_density: float | None = key(
+        None, "Density [kg/m^3] giving each link without <inertial> the inertia of its "
+        "collision geometry (pbvs_pin.link_inertia); the links go to the run's meta. Absent: "
+        "such links stay massless.", sign=POSITIVE, optional=float,
+    )  # fmt: skip
     home: tuple[float, ...] | None = key(
         None, "Arm home posture [rad or m], one per arm joint; the robot's own if absent."
     )
@@ -135,6 +140,8 @@ class RobotSection(Section):
         drive = [self._has(name) for name in DRIVE_KEYS]
         if given[0] == "name" and self.repair_inertia:
             raise GainError("a shipped robot's inertias are valid: remove it", "repair_inertia")
+        if given[0] == "name" and self.geometry_density is not None:
+            raise GainError("a shipped robot has its inertias: remove it", "geometry_density")
         if given[0] == "name" and any(drive):
             name = DRIVE_KEYS[drive.index(True)]
             raise GainError("a shipped robot's drive is known: remove the drive keys", name)

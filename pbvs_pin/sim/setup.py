@@ -121,13 +121,17 @@ class Setup:
         return self.control.tracker.estimator
 
     def robot_meta(self) -> dict[str, Any]:
-        """The robot in a log's meta: ``robot`` (a label), ``robot_table``, ``inertia_repaired``.
+        """The robot in a log's meta: its label, table and the inertias changed on loading.
 
-        ``robot_table`` is the ``[robot]`` table the robot was built from (None for a robot
-        given from Python, whose label is its source); ``inertia_repaired`` lists the links
-        whose inertia ``repair_inertia`` changed.
+        ``robot`` is a label; ``robot_table`` is the ``[robot]`` table the robot was built
+        from (None for a robot given from Python, whose label is its source);
+        ``inertia_repaired`` lists the links whose inertia ``repair_inertia`` changed,
+        ``inertia_from_geometry`` those that ``geometry_density`` gave an inertia.
         """
-        repaired = {"inertia_repaired": list(self.robot.repaired_inertias)}
+        repaired = {
+            "inertia_repaired": list(self.robot.repaired_inertias),
+            "inertia_from_geometry": list(self.robot.filled_inertias),
+        }
         if self.robot_given:
             return {"robot": self.robot.source, "robot_table": None, **repaired}
         return {
