@@ -35,6 +35,7 @@ from pbvs_pin.exceptions import (
     ChainError,
     DriveAxleNotFound,
     FrameNotFound,
+    GainError,
     HomeNotFound,
     NoMovableJoint,
     PbvsError,
@@ -109,6 +110,45 @@ HINTS = {
     "if camera_link is the optical frame)",
 }
 """What to write for each required key, in the error that says it is missing."""
+
+
+def given(spec: RobotTable, name: str) -> bool:
+    """Whether key ``name`` of the table is given (not empty, not absent)."""
+    return getattr(spec, name) not in ("", None)
+
+
+def check_forms(spec: RobotTable) -> None:
+    """Exactly one form (:data:`ROBOT_FORMS`), with every key it needs and no key it refuses.
+
+    Raises:
+        GainError: Naming the key at fault.
+    """
+    forms = [form for form, names in ROBOT_FORMS.items() if any(given(spec, n) for n in names)]
+    if len(forms) > 1:
+        first, second = (next(n for n in ROBOT_FORMS[f] if given(spec, n)) for f in forms[:2])
+        raise GainError(
+            f"cannot be combined with robot.{first}: give one form, a shipped name, a urdf "
+            "with its camera_frame, or an assembly (base, arm, mount, camera_link, "
+            "camera_pose)",
+            second,
+        )
+    for name, needed in REQUIRED[forms[0]]:
+        if not given(spec, name) and all(given(spec, n) for n in needed):
+            raise GainError(f"missing; add {name} = {HINTS[name]}", name)
+    for name in CHAIN_KEYS:
+        if given(spec, name) and not given(spec, "arm"):
+            raise GainError("needs an arm: the chain is cut out of the arm's URDF", name)
+    drive = [given(spec, name) for name in DRIVE_KEYS]
+    if forms[0] == "name" and spec.repair_inertia:
+        raise GainError("a shipped robot's inertias are valid: remove it", "repair_inertia")
+    if forms[0] == "name" and spec.geometry_density is not None:
+        raise GainError("a shipped robot has its inertias: remove it", "geometry_density")
+    if forms[0] == "name" and any(drive):
+        name = DRIVE_KEYS[drive.index(True)]
+        raise GainError("a shipped robot's drive is known: remove the drive keys", name)
+    if any(drive) and not all(drive):
+        name = DRIVE_KEYS[drive.index(False)]
+        raise GainError(f"missing; the drive keys go together: add {name}", name)
 
 
 def is_path(name: str, value: str) -> bool:

@@ -20,15 +20,7 @@ from pbvs_pin.control.upright import LOOP_GAIN_MARGIN, RESTORING_RATE
 from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.robot_spec import (
-    CHAIN_KEYS,
-    DRIVE_KEYS,
-    HINTS,
-    REQUIRED,
-    ROBOT_FORMS,
-    build_robot_from,
-    is_path,
-)
+from pbvs_pin.robot_spec import ROBOT_FORMS, build_robot_from, check_forms, given, is_path
 from pbvs_pin.sim.keys import (
     NON_NEGATIVE,
     POSITIVE,
@@ -119,44 +111,14 @@ class RobotSection(Section):
 
     def validate(self) -> None:
         """Exactly one form, with every key it needs (GainError naming the key at fault)."""
-        given = [form for form, names in ROBOT_FORMS.items() if any(self._has(n) for n in names)]
-        if len(given) > 1:
-            first, second = (next(n for n in ROBOT_FORMS[f] if self._has(n)) for f in given[:2])
-            raise GainError(
-                f"cannot be combined with robot.{first}: give one form, a shipped name, a urdf "
-                "with its camera_frame, or an assembly (base, arm, mount, camera_link, "
-                "camera_pose)",
-                second,
-            )
-        if not given:
+        if not any(given(self, name) for names in ROBOT_FORMS.values() for name in names):
             object.__setattr__(self, "name", REFERENCE_ROBOT)
-            given = ["name"]
-        for name, needed in REQUIRED[given[0]]:
-            if not self._has(name) and all(self._has(n) for n in needed):
-                raise GainError(f"missing; add {name} = {HINTS[name]}", name)
-        for name in CHAIN_KEYS:
-            if self._has(name) and not self._has("arm"):
-                raise GainError("needs an arm: the chain is cut out of the arm's URDF", name)
-        drive = [self._has(name) for name in DRIVE_KEYS]
-        if given[0] == "name" and self.repair_inertia:
-            raise GainError("a shipped robot's inertias are valid: remove it", "repair_inertia")
-        if given[0] == "name" and self.geometry_density is not None:
-            raise GainError("a shipped robot has its inertias: remove it", "geometry_density")
-        if given[0] == "name" and any(drive):
-            name = DRIVE_KEYS[drive.index(True)]
-            raise GainError("a shipped robot's drive is known: remove the drive keys", name)
-        if any(drive) and not all(drive):
-            name = DRIVE_KEYS[drive.index(False)]
-            raise GainError(f"missing; the drive keys go together: add {name}", name)
-
-    def _has(self, name: str) -> bool:
-        """Whether key ``name`` is given (not empty, not absent)."""
-        return getattr(self, name) not in ("", None)
+        check_forms(self)
 
     @property
     def form(self) -> str:
         """``"name"``, ``"urdf"`` or ``"assembly"``."""
-        return next(f for f, names in ROBOT_FORMS.items() if any(self._has(n) for n in names))
+        return next(f for f, names in ROBOT_FORMS.items() if any(given(self, n) for n in names))
 
     @property
     def label(self) -> str:
