@@ -37,7 +37,7 @@ from pbvs_pin.link_inertia import checked_density, fill_missing_inertias
 from pbvs_pin.shipped import shipped_urdf
 from pbvs_pin.urdf_checks import axisless_joints, check_physics, check_tree
 
-_DRIVE_ADVICE = (
+DRIVE_ADVICE = (
     "The drive needs wheel_radius [m], track [m] (distance between the left and right wheels) "
     "and wheel_speed_limit [rad/s]: add them to the URDF (wheel joints with <limit "
     "velocity=...>, wheel links with cylinder or sphere geometry), or give them explicitly "
@@ -341,7 +341,7 @@ def find_drive_axle(source: UrdfSource) -> DriveAxle:
             "no usable drive axle: expected continuous or revolute wheel joints with their "
             "axis along the platform's y axis, hanging from the root link "
             f"{root!r} through fixed joints, on both sides (y > 0 and y < 0); found {found}. "
-            f"{_DRIVE_ADVICE}",
+            f"{DRIVE_ADVICE}",
         )
     radii, speeds = [], []
     for joint, _ in wheels:
@@ -350,13 +350,13 @@ def find_drive_axle(source: UrdfSource) -> DriveAxle:
             raise DriveAxleNotFound(
                 source.label,
                 f"wheel link {joint.child!r} has no cylinder or sphere geometry giving its "
-                f"radius (wheel_radius). {_DRIVE_ADVICE}",
+                f"radius (wheel_radius). {DRIVE_ADVICE}",
             )
         if joint.limit is None or not joint.limit.velocity:
             raise DriveAxleNotFound(
                 source.label,
                 f"wheel joint {joint.name!r} has no <limit velocity=...> giving the wheel speed "
-                f"limit (wheel_speed_limit). {_DRIVE_ADVICE}",
+                f"limit (wheel_speed_limit). {DRIVE_ADVICE}",
             )
         radii.append(radius)
         speeds.append(float(joint.limit.velocity))

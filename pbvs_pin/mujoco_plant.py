@@ -58,9 +58,9 @@ import yourdfpy
 from lxml import etree
 
 from pbvs_pin import frames
-from pbvs_pin.assembly import DriveAxle, UrdfSource, find_drive_axle
+from pbvs_pin.assembly import DRIVE_ADVICE, DriveAxle, UrdfSource, find_drive_axle
 from pbvs_pin.base import DifferentialDrive
-from pbvs_pin.exceptions import GainError, UrdfError
+from pbvs_pin.exceptions import DriveAxleNotFound, GainError, UrdfError
 from pbvs_pin.mujoco_kernels import arm_gravity_load, servo_commands, true_state
 from pbvs_pin.mujoco_payload import UnknownPayload
 
@@ -172,7 +172,17 @@ def build_spec(
     if not (np.isfinite(friction) and friction > 0):
         raise GainError(f"MuJoCo plant: expected wheel friction > 0, got {friction}")
     xml = _strip_geometry(robot.urdf_xml)
-    axle = _drive_axle(xml, robot.source)
+    try:
+        axle = _drive_axle(xml, robot.source)
+    except DriveAxleNotFound as err:  # an explicit drive sets the controller's model only
+        reason = str(err).removeprefix(f"{err.source}: ").removesuffix(f" {DRIVE_ADVICE}")
+        raise UrdfError(
+            robot.source,
+            "MuJoCo plant: the wheels that roll on its floor are the URDF's drive axle, which "
+            f"this URDF does not describe ({reason.rstrip('.')}); an explicit drive "
+            "(wheel_radius, track, wheel_speed_limit) sets the controller's model only. Run "
+            'it on the Pinocchio plant (plant.engine = "pinocchio")',
+        ) from err
     try:
         spec = mujoco.MjSpec.from_string(xml.decode())
     except ValueError as err:

@@ -158,3 +158,18 @@ def test_errors_name_files_without_this_machines_folders():
         "- ``r`` on pinocchio (experiment1): pioneer3at.urdf + rtbdata/xacro/irb140.urdf: "
         "arm joints move no mass\n"
     )
+
+
+def test_an_explicit_drive_on_the_mujoco_plant_is_refused_with_the_way_out():
+    """Stretch's drive is given in its file; the MuJoCo plant needs wheels in the URDF."""
+    from pbvs_pin.exceptions import UrdfError
+    from pbvs_pin.mujoco_plant import build_spec
+
+    stretch = next(robot for robot in load_zoo(ROBOTS) if robot.name == "stretch_re1")
+    robot = RobotSection.from_toml(stretch.table, str(stretch.path)).build()
+    with pytest.raises(UrdfError) as refused:
+        build_spec(robot)
+    message = str(refused.value)
+    assert "'link_right_wheel' has no cylinder or sphere geometry" in message
+    assert "an explicit drive (wheel_radius, track, wheel_speed_limit)" in message
+    assert 'plant.engine = "pinocchio"' in message and "DifferentialDrive" not in message
