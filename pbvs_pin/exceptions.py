@@ -28,7 +28,7 @@ class UrdfError(PbvsError):
             source: Path of the URDF file, or the name it was loaded by.
             problem: What is wrong and what was expected.
         """
-        self.source = source
+        self.source, self.problem = source, problem
         super().__init__(f"{source}: {problem}")
 
 
@@ -296,7 +296,7 @@ class LogError(PbvsError):
             source: Path of the log.
             problem: What is wrong and what was expected.
         """
-        self.source = source
+        self.source, self.problem = source, problem
         super().__init__(f"{source}: {problem}")
 
 

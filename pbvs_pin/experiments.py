@@ -295,7 +295,7 @@ def _idealised_runs(
     found: dict[str, list[dict[str, Any]]] = {}
     for variant, values in variants.items():
         found[variant] = []
-        label = "every idealisation" if variant == "all" else f"all but {variant}"
+        label = _variant_label(variant)
         for name in CLAIMS:
             echo(f"  {name} with {label}: passivity check")
             folder = out / "idealised" / variant.replace(" ", "_") / name
@@ -460,11 +460,16 @@ def _idealised_section(ideal: dict[str, list[dict[str, Any]]] | None) -> str:
         "|---|---|---|---|---|",
     ]
     for variant, results in ideal.items():
-        label = "every idealisation" if variant == "all" else f"all but {variant}"
+        label = _variant_label(variant)
         for result in results:
             cells = _passivity_cells(result)
             lines.append(f"| {label} | {result['scenario']} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _variant_label(variant: str) -> str:
+    """``every idealisation`` for the runs with all of them, ``all but X`` for the others."""
+    return "every idealisation" if variant == "all" else f"all but {variant}"
 
 
 def _inequality(lhs: Any, relation: str, rhs: Any, holds: Any) -> str:

@@ -175,7 +175,7 @@ def build_spec(
     try:
         axle = _drive_axle(xml, robot.source)
     except DriveAxleNotFound as err:  # an explicit drive sets the controller's model only
-        reason = str(err).removeprefix(f"{err.source}: ").removesuffix(f" {DRIVE_ADVICE}")
+        reason = err.problem.removesuffix(f" {DRIVE_ADVICE}")
         raise UrdfError(
             robot.source,
             "MuJoCo plant: the wheels that roll on its floor are the URDF's drive axle, which "

@@ -117,13 +117,18 @@ def given(spec: RobotTable, name: str) -> bool:
     return getattr(spec, name) not in ("", None)
 
 
+def forms_given(spec: RobotTable) -> list[str]:
+    """The forms (:data:`ROBOT_FORMS`) of which the table gives at least one key, in order."""
+    return [form for form, names in ROBOT_FORMS.items() if any(given(spec, n) for n in names)]
+
+
 def check_forms(spec: RobotTable) -> None:
     """Exactly one form (:data:`ROBOT_FORMS`), with every key it needs and no key it refuses.
 
     Raises:
         GainError: Naming the key at fault.
     """
-    forms = [form for form, names in ROBOT_FORMS.items() if any(given(spec, n) for n in names)]
+    forms = forms_given(spec)
     if len(forms) > 1:
         first, second = (next(n for n in ROBOT_FORMS[f] if given(spec, n)) for f in forms[:2])
         raise GainError(

@@ -130,6 +130,16 @@ def _faults(rows: list[dict[str, Any]]) -> list[str]:
     return list(dict.fromkeys(r["fault"] for r in rows))
 
 
+def _break_label(rows: list[dict[str, Any]], fault: str, variant: str) -> str:
+    """Where ``variant`` breaks under ``fault``: ``"4 px"``, or ``"not up to 8 px"``."""
+    unit = next(r["unit"] for r in rows if r["fault"] == fault)
+    first = breaking_point(rows, fault, variant)
+    if first is None:
+        top = max(r["size"] for r in rows if r["fault"] == fault)
+        return f"not up to {top:g} {unit}".rstrip()
+    return f"{first:g} {unit}".rstrip()
+
+
 MAP_STYLES = {
     "without": ("tab:red", "o", "without fault handling"),
     "with": ("tab:blue", "s", "with fault handling (predict, hold, smooth)"),
@@ -171,9 +181,7 @@ def plot_map(rows: list[dict[str, Any]], path: Path, threshold_px: float = 10.0)
             first = breaking_point(rows, fault, variant)
             if first is not None:
                 ax.axvline(first, color=color, linestyle=":", linewidth=1.5)
-            top = max(r["size"] for r in mine)
-            at = f"not up to {top:g} {unit}" if first is None else f"{first:g} {unit}"
-            breaks.append(f"{variant}: {at.rstrip()}")
+            breaks.append(f"{variant}: {_break_label(rows, fault, variant)}")
         ax.axhline(threshold_px, color="gray", linestyle="--", label=f"{threshold_px:g} px limit")
         ax.set_yscale("log")
         # plain numbers (2, 30, 500) rather than 2x10^0 on the log axis
@@ -214,11 +222,7 @@ def map_section(rows: list[dict[str, Any]], figure: str = "robustness.png") -> s
     for fault in _faults(rows):
         unit = next(r["unit"] for r in rows if r["fault"] == fault)
         sizes = sorted({r["size"] for r in rows if r["fault"] == fault})
-        cells = []
-        for variant in VARIANTS:
-            first = breaking_point(rows, fault, variant)
-            top = f"not up to {sizes[-1]:g} {unit}".rstrip()
-            cells.append(top if first is None else f"{first:g} {unit}".rstrip())
+        cells = [_break_label(rows, fault, variant) for variant in VARIANTS]
         lines.append(
             f"| {fault} | {(', '.join(f'{s:g}' for s in sizes) + ' ' + unit).rstrip()} | "
             + " | ".join(cells)

@@ -68,6 +68,12 @@ class ZooRobot:
         sources = [self.table.get(key, "") for key in ("urdf", "base", "arm", "name")]
         return " + ".join(dict.fromkeys(_package_of(s) for s in sources if s))
 
+    @property
+    def scenario_values(self) -> dict[str, Any]:
+        """The robot as scenario keys (``robot.<key>``), replacing a scenario's own robot."""
+        values = {f"robot.{key}": value for key, value in self.table.items()}
+        return {"robot.name": "", **values}
+
 
 def _package_of(source: str) -> str:
     """The distribution a ``[robot]`` URDF source (or shipped robot name) comes from."""
@@ -139,9 +145,7 @@ def run_robot(
 
     folder = out / robot_file.name
     folder.mkdir(parents=True, exist_ok=True)
-    values = {f"robot.{key}": value for key, value in robot_file.table.items()}
-    if "name" not in robot_file.table:
-        values["robot.name"] = ""
+    values = robot_file.scenario_values
     rows, robot, info = [], None, {}
     for experiment in experiments:
         for engine in engines:

@@ -131,7 +131,7 @@ def test_a_run_lists_the_links_that_got_an_inertia_in_its_meta():
     from pbvs_pin.zoo import load_zoo
 
     iiwa = next(robot for robot in load_zoo(REPO_ROOT / "robots") if robot.name == "pioneer_iiwa14")
-    values = {f"robot.{key}": value for key, value in iiwa.table.items()} | {"robot.name": ""}
+    values = iiwa.scenario_values
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the arm's base link inside the platform's box
         log = simulate(load_scenario("experiment1").with_values(**values, duration=0.2))

@@ -113,8 +113,7 @@ def test_command_line_reuses_the_runs_and_writes_the_page(short_zoo, tmp_path, c
 def _asked_loop_gain(name: str) -> tuple[float, float]:
     """Median loop gain asked for over Experiment 4's first 10 s, and the net's share."""
     robot_file = next(robot for robot in load_zoo(ROBOTS) if robot.name == name)
-    values = {f"robot.{key}": value for key, value in robot_file.table.items()}
-    values.setdefault("robot.name", "")
+    values = robot_file.scenario_values
     scenario = load_scenario("experiment4").with_values(**values, duration=10.0)
     spec = RobotSection.from_toml(robot_file.table, str(robot_file.path))
     with warnings.catch_warnings():

@@ -21,9 +21,7 @@ from pbvs_pin.report import RENDERED_BEGIN, RENDERED_END, readme_block, rendered
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario
-
-EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
-ENGINES = ("pinocchio", "mujoco")
+from pbvs_pin.zoo import ENGINES, EXPERIMENTS
 
 
 def rendered_summary(experiment: str, engine: str) -> dict:

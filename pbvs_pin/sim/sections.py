@@ -20,7 +20,7 @@ from pbvs_pin.control.upright import LOOP_GAIN_MARGIN, RESTORING_RATE
 from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.robot_spec import ROBOT_FORMS, build_robot_from, check_forms, given, is_path
+from pbvs_pin.robot_spec import build_robot_from, check_forms, forms_given, is_path
 from pbvs_pin.sim.keys import (
     NON_NEGATIVE,
     POSITIVE,
@@ -33,12 +33,13 @@ from pbvs_pin.sim.keys import (
 class RobotSection(Section):
     """``[robot]``: which robot, in one of three forms, and where its arm starts.
 
-    The forms (:data:`ROBOT_FORMS`) are a shipped ``name``; a ``urdf`` file with its
-    ``camera_frame``; or an assembly of a ``base`` and an ``arm`` at ``mount`` with the camera
-    at ``camera_pose`` in ``camera_link``. A file gives exactly one; none is the reference
-    robot. Relative URDF paths (``urdf``, and ``base``/``arm`` ending in ``.urdf``) are read
-    against the folder of the file (:attr:`source`) and kept absolute. The drive parameters
-    replace the drive axle found in the platform URDF (:mod:`pbvs_pin.robot_spec`).
+    The forms (:data:`~pbvs_pin.robot_spec.ROBOT_FORMS`) are a shipped ``name``; a ``urdf``
+    file with its ``camera_frame``; or an assembly of a ``base`` and an ``arm`` at ``mount``
+    with the camera at ``camera_pose`` in ``camera_link``. A file gives exactly one; none is
+    the reference robot. Relative URDF paths (``urdf``, and ``base``/``arm`` ending in
+    ``.urdf``) are read against the folder of the file (:attr:`source`) and kept absolute. The
+    drive parameters replace the drive axle found in the platform URDF
+    (:mod:`pbvs_pin.robot_spec`).
 
     Attributes:
         source: File the table was read from, for error messages and relative paths.
@@ -111,14 +112,14 @@ class RobotSection(Section):
 
     def validate(self) -> None:
         """Exactly one form, with every key it needs (GainError naming the key at fault)."""
-        if not any(given(self, name) for names in ROBOT_FORMS.values() for name in names):
+        if not forms_given(self):
             object.__setattr__(self, "name", REFERENCE_ROBOT)
         check_forms(self)
 
     @property
     def form(self) -> str:
         """``"name"``, ``"urdf"`` or ``"assembly"``."""
-        return next(f for f, names in ROBOT_FORMS.items() if any(given(self, n) for n in names))
+        return forms_given(self)[0]
 
     @property
     def label(self) -> str:
