@@ -47,6 +47,15 @@ class BaseAdapter(abc.ABC):
     def velocity_limits(self) -> np.ndarray:
         """Largest magnitude of each actuated base velocity, SI units. Shape (n_root,)."""
 
+    def per_velocity(self, linear: float, yaw: float) -> tuple[float, ...]:
+        """A value written for a unicycle (forward speed, yaw rate), one per base velocity.
+
+        Gains and time constants written for the paper's platform fit any base: the linear
+        value goes to every linear velocity (``u``; ``vx`` and ``vy`` of a holonomic base), the
+        yaw value to ``omega``.
+        """
+        return tuple(yaw if name == "omega" else linear for name in self.velocity_names)
+
 
 @dataclass(frozen=True)
 class DifferentialDrive(BaseAdapter):

@@ -13,6 +13,28 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, inline="always")
+def arm_state(
+    qpos: np.ndarray,
+    qvel: np.ndarray,
+    arm_qpos: np.ndarray,
+    arm_dof: np.ndarray,
+    arm_q_index: np.ndarray,
+    continuous: np.ndarray,
+    q: np.ndarray,
+    v: np.ndarray,
+    n_base: int,
+) -> None:
+    """The arm joints' part of :func:`true_state`: ``q``'s arm entries, ``v[n_base:]``."""
+    for j in range(arm_qpos.shape[0]):
+        angle, index = qpos[arm_qpos[j]], arm_q_index[j]
+        if continuous[j]:
+            q[index], q[index + 1] = np.cos(angle), np.sin(angle)
+        else:
+            q[index] = angle
+        v[n_base + j] = qvel[arm_dof[j]]
+
+
 @njit(cache=True)
 def true_state(
     qpos: np.ndarray,
@@ -54,13 +76,37 @@ def true_state(
     body[1] = r01 * qvel[0] + r11 * qvel[1] + r21 * qvel[2]
     body[2] = r20 * qvel[3] + r21 * qvel[4] + r22 * qvel[5]
     v[0], v[1] = body[0], body[2]
-    for j in range(arm_qpos.shape[0]):
-        angle, index = qpos[arm_qpos[j]], arm_q_index[j]
-        if continuous[j]:
-            q[index], q[index + 1] = np.cos(angle), np.sin(angle)
-        else:
-            q[index] = angle
-        v[2 + j] = qvel[arm_dof[j]]
+    arm_state(qpos, qvel, arm_qpos, arm_dof, arm_q_index, continuous, q, v, 2)
+
+
+@njit(cache=True)
+def planar_true_state(
+    qpos: np.ndarray,
+    qvel: np.ndarray,
+    arm_qpos: np.ndarray,
+    arm_dof: np.ndarray,
+    arm_q_index: np.ndarray,
+    continuous: np.ndarray,
+    q: np.ndarray,
+    v: np.ndarray,
+    body: np.ndarray,
+) -> None:
+    r""":func:`true_state` of a holonomic base on MuJoCo's planar joints.
+
+    The root body's joints are a slide along the world's x, one along its y and a hinge about
+    z: ``qpos[0:3] = (x, y, theta)``, ``qvel[0:3]`` the world velocity and the yaw rate. The
+    body velocity is ``[R(theta)^T qvel[0:2], qvel[2]]``, which is also ``v``'s
+    ``[vx, vy, omega]``.
+
+    Args: as :func:`true_state`; ``v`` is ``[vx, vy, omega, arm rates]``.
+    """
+    c, s = np.cos(qpos[2]), np.sin(qpos[2])
+    q[0], q[1], q[2], q[3] = qpos[0], qpos[1], c, s
+    body[0] = c * qvel[0] + s * qvel[1]
+    body[1] = -s * qvel[0] + c * qvel[1]
+    body[2] = qvel[2]
+    v[0], v[1], v[2] = body[0], body[1], body[2]
+    arm_state(qpos, qvel, arm_qpos, arm_dof, arm_q_index, continuous, q, v, 3)
 
 
 @njit(cache=True)
@@ -123,6 +169,7 @@ def servo_commands(
     yaw_integral: np.ndarray,
     yaw_gain: float,
     yaw_integral_limit: float,
+    holonomic: bool,
     arm_dof: np.ndarray,
     arm_joint: np.ndarray,
     arm_body: np.ndarray,
@@ -141,7 +188,7 @@ def servo_commands(
     biasprm: np.ndarray,
     ctrl: np.ndarray,
 ) -> None:
-    r"""Set the wheel and arm servos' gains and commands for one MuJoCo step.
+    r"""Set the wheel, arm and holonomic base servos' gains and commands for one MuJoCo step.
 
     Platform: the clipped reference ``clip(v_ref[:n_base])`` passes the platform's first-order
     lags (time constants ``T_k`` of :class:`pbvs_pin.servo.ServoModel`), exactly discretised,
@@ -157,6 +204,7 @@ def servo_commands(
     Arm joint ``j`` (actuator ``n_w + j``): the stiffness of :class:`pbvs_pin.servo.ServoModel`,
     ``K_j = (sum_k |M_v,jk|) / T_j``, with ``M_v = S^T M S`` in the actuated velocities
     ``[u, omega, arm]`` (``u`` moves the free joint along the heading, ``omega`` turns it about z;
+    a holonomic base's ``vy`` moves it across the heading;
     the wheels, on other branches, do not couple with the arm), is the velocity actuator's gain
     (``gainprm = K``, ``biasprm[2] = -K``); its command is
     ``r + (D r + F tanh(r / w) + G g + K e / T_I) / K`` with ``r`` the clipped reference, the
@@ -184,6 +232,9 @@ def servo_commands(
         yaw_integral: Updated: the gyro loop's integral ``e_g`` [rad]. Shape (1,).
         yaw_gain: ``1 / T_g`` [1/s] (0: no gyro loop).
         yaw_integral_limit: Clamp of ``e_g`` [rad].
+        holonomic: The root is MuJoCo's planar joints (:func:`planar_true_state`): no wheels,
+            no gyro loop; the platform actuators follow the arm's, their commands the lagged
+            platform reference turned into the world frame.
         arm_dof: The arm joints' dof addresses. Shape (n_arm,).
         arm_joint: Joint id of each arm joint (:func:`arm_gravity_load`). Shape (n_arm,).
         arm_body: Its body id. Shape (n_arm,).
@@ -208,13 +259,14 @@ def servo_commands(
         clipped = min(max(v_ref[k], -speed_limits[k]), speed_limits[k])
         platform_state[k] += platform_blend[k] * (clipped - platform_state[k])
         platform[k] = platform_state[k]
-    yaw_rate = (
-        footprint_rotation[6] * qvel[3] + footprint_rotation[7] * qvel[4]
-        + footprint_rotation[8] * qvel[5]
-    )  # fmt: skip
-    yaw_error = yaw_integral[0] + h * (platform[n_base - 1] - yaw_rate)
-    yaw_integral[0] = min(max(yaw_error, -yaw_integral_limit), yaw_integral_limit)
-    platform[n_base - 1] += yaw_gain * yaw_integral[0]
+    if yaw_gain > 0.0:
+        yaw_rate = (
+            footprint_rotation[6] * qvel[3] + footprint_rotation[7] * qvel[4]
+            + footprint_rotation[8] * qvel[5]
+        )  # fmt: skip
+        yaw_error = yaw_integral[0] + h * (platform[n_base - 1] - yaw_rate)
+        yaw_integral[0] = min(max(yaw_error, -yaw_integral_limit), yaw_integral_limit)
+        platform[n_base - 1] += yaw_gain * yaw_integral[0]
     n_wheels = wheel_dof.shape[0]
     for i in range(n_wheels):
         wheel_ref = 0.0
@@ -229,9 +281,12 @@ def servo_commands(
     arm_gravity_load(xaxis, xanchor, subtree_com, arm_joint, arm_body, slide, weight, gravity)
     heading_x, heading_y = footprint_rotation[0], footprint_rotation[3]
     norm = np.hypot(heading_x, heading_y)
+    yaw_dof = 2 if holonomic else 5
     for j in range(n_arm):
         a = arm_dof[j]
-        row = abs((mass[a, 0] * heading_x + mass[a, 1] * heading_y) / norm) + abs(mass[a, 5])
+        row = abs((mass[a, 0] * heading_x + mass[a, 1] * heading_y) / norm) + abs(mass[a, yaw_dof])
+        if holonomic:  # vy: the lateral direction's coupling
+            row += abs((mass[a, 1] * heading_x - mass[a, 0] * heading_y) / norm)
         for k in range(n_arm):
             row += abs(mass[a, arm_dof[k]])
         gain = inverse_time_constants[j] * row
@@ -252,3 +307,8 @@ def servo_commands(
         gainprm[actuator, 0] = gain
         biasprm[actuator, 2] = -gain
         ctrl[actuator] = reference + feed_forward / gain
+    if holonomic:  # the base's slides move along the world's x and y
+        first = n_wheels + n_arm
+        ctrl[first] = (heading_x * platform[0] - heading_y * platform[1]) / norm
+        ctrl[first + 1] = (heading_y * platform[0] + heading_x * platform[1]) / norm
+        ctrl[first + 2] = platform[2]

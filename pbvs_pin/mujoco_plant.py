@@ -59,10 +59,16 @@ from lxml import etree
 
 from pbvs_pin import frames
 from pbvs_pin.assembly import DRIVE_ADVICE, DriveAxle, UrdfSource, find_drive_axle
-from pbvs_pin.base import DifferentialDrive
+from pbvs_pin.base import DifferentialDrive, Omnidirectional
 from pbvs_pin.exceptions import DriveAxleNotFound, GainError, UrdfError
-from pbvs_pin.mujoco_kernels import arm_gravity_load, servo_commands, true_state
+from pbvs_pin.mujoco_kernels import (
+    arm_gravity_load,
+    planar_true_state,
+    servo_commands,
+    true_state,
+)
 from pbvs_pin.mujoco_payload import UnknownPayload
+from pbvs_pin.mujoco_stability import warn_if_tipping
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -87,6 +93,11 @@ A skid-steer platform whose wheels reach their speeds turns at ``rho omega`` wit
 (its slip, which depends on the load, the floor and the rate); the loop's closed-loop time
 constant is then ``T_g / rho``, 0.1-0.5 s, no slower than the platform servo the controller's
 model assumes."""
+
+HOLONOMIC_TIME_CONSTANT = 0.01
+"""Time constant [s] of a holonomic base's joint servos (its slides': mass over gain; its yaw's:
+inertia over gain): fast beside the platform's lags of :class:`pbvs_pin.servo.ServoModel`,
+so that the base responds as the Pinocchio plant's does."""
 
 GROUND = "ground"
 """Name of the ground plane geom."""
@@ -148,30 +159,34 @@ def _repair_inertia(body: mujoco.MjsBody) -> None:
 
 def build_spec(
     robot: MobileManipulator, friction: float = WHEEL_FRICTION
-) -> tuple[mujoco.MjSpec, DriveAxle]:
+) -> tuple[mujoco.MjSpec, DriveAxle | None]:
     """MuJoCo description of ``robot`` on a ground plane, without actuators.
 
     Args:
-        robot: A differential-drive robot built from a URDF (``robot.urdf_xml`` set).
+        robot: A differential-drive or omnidirectional robot built from a URDF
+            (``robot.urdf_xml`` set).
         friction: Sliding friction coefficient of the drive wheels on the ground.
 
     Returns:
-        The spec (free joint on the drive footprint, ground, contact geometry) and the drive
-        axle found in the URDF.
+        The spec (free joint on the drive footprint, ground, contact geometry; or a holonomic
+        base's planar joints, :func:`_holonomic_spec`) and the drive axle found in the URDF
+        (None for a holonomic base).
 
     Raises:
-        UrdfError: If the robot has no URDF, is not a differential drive, or MuJoCo rejects it.
+        UrdfError: If the robot has no URDF, has a fixed base, or MuJoCo rejects it.
         GainError: If ``friction`` is not positive.
     """
-    if robot.urdf_xml is None or not isinstance(robot.base, DifferentialDrive):
+    if robot.urdf_xml is None or not isinstance(robot.base, DifferentialDrive | Omnidirectional):
         raise UrdfError(
             robot.source,
-            "MuJoCo plant: expected a differential-drive robot built from a URDF "
-            "(MobileManipulator.from_urdf or assemble)",
+            "MuJoCo plant: expected a differential-drive or omnidirectional robot built from a "
+            "URDF (MobileManipulator.from_urdf or assemble)",
         )
     if not (np.isfinite(friction) and friction > 0):
         raise GainError(f"MuJoCo plant: expected wheel friction > 0, got {friction}")
     xml = _strip_geometry(robot.urdf_xml)
+    if isinstance(robot.base, Omnidirectional):
+        return _holonomic_spec(robot, xml), None
     try:
         axle = _drive_axle(xml, robot.source)
     except DriveAxleNotFound as err:  # an explicit drive sets the controller's model only
@@ -183,18 +198,12 @@ def build_spec(
             "(wheel_radius, track, wheel_speed_limit) sets the controller's model only. Run "
             'it on the Pinocchio plant (plant.engine = "pinocchio")',
         ) from err
-    try:
-        spec = mujoco.MjSpec.from_string(xml.decode())
-    except ValueError as err:
-        raise UrdfError(robot.source, f"MuJoCo cannot read the URDF: {err}") from err
-    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
-    spec.compiler.fusestatic = True
-    for body in spec.bodies:
-        _repair_inertia(body)
+    spec = _read_spec(xml, robot.source)
     root = spec.body(frames.DRIVE_FOOTPRINT)
     root.add_freejoint(name=frames.DRIVE_FOOTPRINT)
     platform = {body.name for body in _static_descendants(root)}
     wheels = {spec.joint(name).parent.name for name in axle.wheel_joints}
+    _lock_other_joints(spec, robot, (frames.DRIVE_FOOTPRINT, *axle.wheel_joints))
     for body in spec.bodies:
         for geom in body.geoms:
             if body.name in wheels or (
@@ -217,8 +226,64 @@ def build_spec(
         condim=1,
         friction=[0.0, 0.0, 0.0],
     )
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     return spec, axle
+
+
+PLANAR_JOINTS = (
+    ("base_x", mujoco.mjtJoint.mjJNT_SLIDE, (1.0, 0.0, 0.0)),
+    ("base_y", mujoco.mjtJoint.mjJNT_SLIDE, (0.0, 1.0, 0.0)),
+    ("base_yaw", mujoco.mjtJoint.mjJNT_HINGE, (0.0, 0.0, 1.0)),
+)
+"""A holonomic base's joints in MuJoCo: name, type, axis (the world's, at the start)."""
+
+
+def _read_spec(xml: bytes, label: str) -> mujoco.MjSpec:
+    """MuJoCo's spec of a stripped URDF, inertias from ``<inertial>`` only (repaired)."""
+    try:
+        spec = mujoco.MjSpec.from_string(xml.decode())
+    except ValueError as err:
+        raise UrdfError(label, f"MuJoCo cannot read the URDF: {err}") from err
+    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    spec.compiler.fusestatic = True
+    for body in spec.bodies:
+        _repair_inertia(body)
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    return spec
+
+
+def _lock_other_joints(spec: mujoco.MjSpec, robot: MobileManipulator, keep: tuple) -> None:
+    """Weld every joint the controller's model locks: a head, fingers, another arm.
+
+    Pinocchio's reduced model holds them at their neutral position (zero, the URDF's joint
+    origin), which is where a joint removed from the URDF's body leaves its child.
+
+    Args:
+        spec: The spec, edited.
+        robot: The controller's model, whose arm joints stay.
+        keep: Other joints that stay (the root's, the drive wheels').
+    """
+    kept = {*robot.arm_joint_names, *keep}
+    for joint in list(spec.joints):
+        if joint.name not in kept:
+            spec.delete(joint)
+
+
+def _holonomic_spec(robot: MobileManipulator, xml: bytes) -> mujoco.MjSpec:
+    """A holonomic base: the platform's root body on planar joints, no contact geometry.
+
+    Mecanum, omni and swerve wheels are not simulated: the root body slides along the world's
+    x and y and turns about z (:data:`PLANAR_JOINTS`), each joint driven by a velocity servo
+    (:class:`MujocoPlant`). The arm and platform keep their masses, inertias and couplings.
+    """
+    spec = _read_spec(xml, robot.source)
+    _lock_other_joints(spec, robot, ())
+    root = spec.worldbody.first_body()
+    for name, kind, axis in PLANAR_JOINTS:
+        root.add_joint(name=name, type=kind, axis=list(axis))
+    for body in spec.bodies:
+        for geom in body.geoms:
+            spec.delete(geom)
+    return spec
 
 
 class MujocoPlant:
@@ -292,9 +357,12 @@ class MujocoPlant:
             body.fullinertia = np.asarray(body.fullinertia) * mass_scale  # NaN when unused
         self.payload = UnknownPayload(spec, robot, payload) if payload != 0 else None
         drive = robot.base
-        n_wheels = len(self.axle.wheel_joints)
-        wheel_gain = mass * drive.wheel_radius**2 / (n_wheels * wheel_time_constant)
-        for name in self.axle.wheel_joints:
+        self.holonomic = self.axle is None
+        wheel_joints = () if self.holonomic else self.axle.wheel_joints
+        wheel_gain = 1.0
+        if not self.holonomic:
+            wheel_gain = mass * drive.wheel_radius**2 / (len(wheel_joints) * wheel_time_constant)
+        for name in wheel_joints:
             spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
             spec.actuator(name).set_to_velocity(kv=wheel_gain)
         n_base = robot.n_base
@@ -307,6 +375,9 @@ class MujocoPlant:
                 joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
             else:
                 joint.actfrcrange = [-effort, effort]
+        for name, _, _ in PLANAR_JOINTS if self.holonomic else ():
+            spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+            spec.actuator(name).set_to_velocity(kv=mass / HOLONOMIC_TIME_CONSTANT)  # yaw: below
         try:
             self.model = spec.compile()
         except ValueError as err:
@@ -328,21 +399,24 @@ class MujocoPlant:
         self._arm_effort = np.ascontiguousarray(servo.effort[n_base:], dtype=float)
         self.arm_integral = np.zeros(robot.n_arm)  # the arm servos' integral states
         self._full_mass = np.zeros((model.nv, model.nv))
-        wheels = [model.joint(name) for name in self.axle.wheel_joints]
+        wheels = [model.joint(name) for name in wheel_joints]
         left = model.body_pos[[j.bodyid[0] for j in wheels], 1] > 0.0
-        # each wheel's row of the drive's map from [u, omega] (its side's)
-        self._wheel_map = drive.wheel_map()[np.where(left, 0, 1)][:, [0, 2]].copy()
-        self._wheel_dof = np.array([j.dofadr[0] for j in wheels])
-        self._wheel_qpos = np.array([j.qposadr[0] for j in wheels])
-        sides = np.array([left, ~left], dtype=float)  # rows: left, right
-        self._wheel_sides = sides / sides.sum(axis=1, keepdims=True)
+        self._wheel_dof = np.array([j.dofadr[0] for j in wheels], dtype=np.int64)
+        self._wheel_qpos = np.array([j.qposadr[0] for j in wheels], dtype=np.int64)
+        self._wheel_map = np.zeros((0, n_base))  # a holonomic base: no wheels
+        self._wheel_sides = np.zeros((2, 0))
+        if wheels:
+            # each wheel's row of the drive's map from [u, omega] (its side's)
+            self._wheel_map = drive.wheel_map()[np.where(left, 0, 1)][:, [0, 2]].copy()
+            sides = np.array([left, ~left], dtype=float)  # rows: left, right
+            self._wheel_sides = sides / sides.sum(axis=1, keepdims=True)
         self._n_wheels = len(wheels)
         self._integral_limit = (
             model.jnt_actfrcrange[[j.id for j in wheels], 1] * wheel_integral_time / wheel_gain
         )
         self._wheel_integral = np.zeros(len(wheels))
-        self._wheel_speed_limit = drive.max_wheel_speed
-        if drive.track_factor == 1.0:
+        self._wheel_speed_limit = 0.0 if self.holonomic else drive.max_wheel_speed
+        if self.holonomic or drive.track_factor == 1.0:
             yaw_integral_time = None
         self._yaw_gain = 0.0 if yaw_integral_time is None else 1.0 / yaw_integral_time
         self._yaw_integral_limit = (
@@ -368,12 +442,17 @@ class MujocoPlant:
             self._wheel_map, self._wheel_dof,
             self._wheel_speed_limit, self._wheel_integral, self._integral_limit,
             wheel_integral_time, self._yaw_integral, self._yaw_gain, self._yaw_integral_limit,
+            self.holonomic,
             self._arm_dof, self._arm_joint, self._arm_body, self._arm_slide, servo_weight,
             self._inverse_time_constants, self._damping, self._friction, servo.friction_speed,
             self._compensated, self._integral_rates, self._arm_effort, self.arm_integral, dt,
             model.actuator_gainprm, model.actuator_biasprm, data.ctrl,
         )  # fmt: skip
         self.reset(q)
+        if self.holonomic:
+            self._set_yaw_servo(HOLONOMIC_TIME_CONSTANT)
+        else:
+            warn_if_tipping(self.model, self.data, robot.source)
         if settle > 0:
             for _ in range(round(settle / dt)):
                 self.step(np.zeros(robot.n))
@@ -381,6 +460,18 @@ class MujocoPlant:
             self._yaw_integral[:] = 0.0
             self._platform_state[:] = 0.0
             self.data.time = 0.0
+
+    def _set_yaw_servo(self, time_constant: float) -> None:
+        """The yaw servo's gain: the robot's inertia about the yaw joint at the start over ``T``.
+
+        The slides' gain is the robot's mass over ``T`` (set when the actuators were added),
+        so that the base follows its lagged reference within about ``T``.
+        """
+        mujoco.mj_fullM(self.model, self.data, self._full_mass)
+        gain = self._full_mass[2, 2] / time_constant
+        yaw = self.model.actuator(PLANAR_JOINTS[2][0]).id
+        self.model.actuator_gainprm[yaw, 0] = gain
+        self.model.actuator_biasprm[yaw, 2] = -gain
 
     # ------------------------------------------------------------------ state
     def reset(self, q: npt.ArrayLike) -> None:
@@ -393,7 +484,10 @@ class MujocoPlant:
         self.arm_integral[:] = 0.0
         self._platform_state[:] = 0.0
         yaw = np.arctan2(q[3], q[2])
-        self.data.qpos[:7] = [q[0], q[1], 0.0, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
+        if self.holonomic:
+            self.data.qpos[:3] = [q[0], q[1], yaw]
+        else:
+            self.data.qpos[:7] = [q[0], q[1], 0.0, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
         self.data.qpos[self._arm_qpos] = self.robot.arm_positions(q)
         mujoco.mj_forward(self.model, self.data)
 
@@ -403,7 +497,8 @@ class MujocoPlant:
         New arrays every step: a caller may keep the previous step's.
         """
         self._q, self._v, self._body = self._neutral.copy(), np.empty(self.robot.n), np.empty(3)
-        true_state(
+        read = planar_true_state if self.holonomic else true_state
+        read(
             self._qpos, self._qvel, self._arm_qpos, self._arm_dof, self.robot.arm_q_indices,
             self.robot.arm_continuous, self._q, self._v, self._body,
         )  # fmt: skip

@@ -28,7 +28,7 @@ from typing import Protocol
 import numpy as np
 
 from pbvs_pin.assembly import PACKAGE_PREFIX
-from pbvs_pin.base import DifferentialDrive
+from pbvs_pin.base import BaseAdapter, DifferentialDrive, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import build_robot
 from pbvs_pin.exceptions import (
@@ -66,6 +66,9 @@ class RobotTable(Protocol):
     wheel_radius: float | None
     track: float | None
     wheel_speed_limit: float | None
+    drive: str
+    speed_limit: float | None
+    yaw_rate_limit: float | None
     arm_root: str
     arm_tip: str
     repair_inertia: bool
@@ -86,6 +89,12 @@ ROBOT_FORMS: dict[str, tuple[str, ...]] = {
 
 DRIVE_KEYS = ("wheel_radius", "track", "wheel_speed_limit")
 """The explicit differential-drive parameters (all or none)."""
+
+OMNIDIRECTIONAL_KEYS = ("speed_limit", "yaw_rate_limit")
+"""The limits of an omnidirectional drive (``drive = "omnidirectional"`` only)."""
+
+DEFAULT_OMNIDIRECTIONAL_LIMIT = 1.0
+"""An omnidirectional drive's speed [m/s] and yaw-rate [rad/s] limit when not given."""
 
 CHAIN_KEYS = ("arm_root", "arm_tip")
 """The keys that cut a chain out of the arm's URDF (assembly form with an arm only)."""
@@ -154,6 +163,22 @@ def check_forms(spec: RobotTable) -> None:
     if any(drive) and not all(drive):
         name = DRIVE_KEYS[drive.index(False)]
         raise GainError(f"missing; the drive keys go together: add {name}", name)
+    _check_drive_kind(spec, forms[0], any(drive))
+
+
+def _check_drive_kind(spec: RobotTable, form: str, wheels_given: bool) -> None:
+    """``drive`` and its limits: not for a shipped robot, not with the wheel keys."""
+    omnidirectional = spec.drive == "omnidirectional"
+    if form == "name" and omnidirectional:
+        raise GainError("a shipped robot's drive is known: remove it", "drive")
+    if omnidirectional and wheels_given:
+        raise GainError(
+            "an omnidirectional drive has no drive axle: remove wheel_radius, track and "
+            "wheel_speed_limit, or set drive = \"differential\"", "drive",
+        )  # fmt: skip
+    for name in OMNIDIRECTIONAL_KEYS:
+        if given(spec, name) and not omnidirectional:
+            raise GainError('limits an omnidirectional drive: add drive = "omnidirectional"', name)
 
 
 def is_path(name: str, value: str) -> bool:
@@ -165,12 +190,20 @@ def is_path(name: str, value: str) -> bool:
     return bool(value) and not value.startswith(PACKAGE_PREFIX) and (name == "urdf" or urdf_name)
 
 
-def drive_of(spec: RobotTable) -> DifferentialDrive | str:
-    """The drive: explicit from the drive keys, else ``"differential"`` (found in the URDF).
+def drive_of(spec: RobotTable) -> BaseAdapter | str:
+    """The drive: omnidirectional, explicit from the drive keys, else ``"differential"``.
+
+    ``"differential"`` is the drive axle found in the URDF; an omnidirectional drive's planar
+    root joint sits at the platform's root link, with the limits given (1 m/s and 1 rad/s if
+    absent).
 
     This is the one place where the drive keys reach the robot builders, as the ``base``
     adapter of :meth:`MobileManipulator.from_urdf` and :meth:`MobileManipulator.assemble`.
     """
+    if spec.drive == "omnidirectional":
+        return Omnidirectional(
+            *(getattr(spec, name) or DEFAULT_OMNIDIRECTIONAL_LIMIT for name in OMNIDIRECTIONAL_KEYS)
+        )
     if spec.wheel_radius is None:
         return "differential"
     return DifferentialDrive(spec.wheel_radius, spec.track, spec.wheel_speed_limit)

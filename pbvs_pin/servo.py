@@ -211,8 +211,8 @@ class ServoModel:
         platform = tuple(as_numbers("platform", platform).ravel())
         revolute, prismatic = as_number("revolute", revolute), as_number("prismatic", prismatic)
         _check_joints_move_mass(robot)
-        if len(platform) != robot.n_base:
-            platform = (platform[0],) * robot.n_base
+        if len(platform) != robot.n_base:  # forward and yaw (or one value) per base velocity
+            platform = robot.base.per_velocity(platform[0], platform[-1])
         taus, damping, friction = [*platform], [0.0] * robot.n_base, [0.0] * robot.n_base
         effort = [np.inf] * robot.n_base
         stop_index, stop_q_index, lower, upper = [], [], [], []

@@ -234,6 +234,9 @@ def _cell(row: dict[str, Any]) -> list[str]:
     ]
 
 
+BASE_KINDS = {2: "differential", 3: "omnidirectional"}
+"""The table's name of a base by its number of velocities."""
+
 FIGURES = ("max err last 5 s [px]", "lost", "past limits [rad or m]", "osc. [px]", "net share",
            "claim met")  # fmt: skip
 """Column heads of one run's figures."""
@@ -241,7 +244,7 @@ FIGURES = ("max err last 5 s [px]", "lost", "past limits [rad or m]", "osc. [px]
 
 def zoo_table(rows: list[dict[str, Any]], engines: tuple[str, ...] = ENGINES) -> str:
     """The zoo's rows as an RST list-table: one line per robot and experiment."""
-    heads = ["robot", "package", "dof", "arm joints", "experiment"] + [
+    heads = ["robot", "package", "dof", "base", "arm joints", "experiment"] + [
         f"{engine}: {figure}" for engine in engines for figure in FIGURES
     ]
     by_run = {(r["robot"], r["experiment"], r["engine"]): r for r in rows}
@@ -249,7 +252,8 @@ def zoo_table(rows: list[dict[str, Any]], engines: tuple[str, ...] = ENGINES) ->
     lines += _rst_row(heads)
     for robot, experiment in dict.fromkeys((r["robot"], r["experiment"]) for r in rows):
         first = next(r for r in rows if r["robot"] == robot)
-        cells = [robot, first["package"], str(first.get("dof", "")), first.get("joint_types", ""),
+        cells = [robot, first["package"], str(first.get("dof", "")),
+                 BASE_KINDS.get(first.get("base_dof"), ""), first.get("joint_types", ""),
                  experiment]  # fmt: skip
         for engine in engines:
             row = by_run.get((robot, experiment, engine))

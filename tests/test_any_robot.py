@@ -18,9 +18,10 @@ UNSHIPPED_ARMS = {  # example-robot-data arms on the reference platform, as a sc
     "ur10": {"camera_link": "tool0", "camera_pose": [0.0] * 6},
     "bravo7_no_ee": {"camera_link": "contact_point", "camera_pose": [0.0] * 6},
 }
-TIAGO_PRO = {  # example-robot-data's TIAGo Pro: its own base, the right arm, an optical frame
+TIAGO_PRO = {  # example-robot-data's TIAGo Pro: its own (mecanum) base, the right arm, an
+    # optical frame
     "name": "", "base": "tiago_pro", "camera_link": "arm_right_tool_link",
-    "camera_pose": [0.0, 0.0, 0.0, -np.pi / 2, 0.0, -np.pi / 2],
+    "camera_pose": [0.0, 0.0, 0.0, -np.pi / 2, 0.0, -np.pi / 2], "drive": "omnidirectional",
 }  # fmt: skip
 
 

@@ -506,16 +506,35 @@ def _eq17_18(k_u, k_w, d0, d, alpha):
 )  # fmt: skip
 def test_obstacle_force_is_eqs_17_18(d, alpha):
     avoidance = ObstacleAvoidance(k_u=0.5, k_w=0.9, d0=1.0)
-    np.testing.assert_allclose(avoidance.force(d, alpha), _eq17_18(0.5, 0.9, 1.0, d, alpha))
+    np.testing.assert_allclose(avoidance.force(d, alpha)[:2], _eq17_18(0.5, 0.9, 1.0, d, alpha))
 
 
 def test_obstacle_force_by_hand():
     """d = 0.5 m, d0 = 1 m, alpha = pi/4 to the right: (d0-d)(pi/2-|alpha|) = pi/8."""
     force = ObstacleAvoidance(k_u=0.5, k_w=0.9, d0=1.0).force(0.5, np.pi / 4)
-    np.testing.assert_allclose(force, [0.5 * np.pi / 8, 0.9 * np.pi / 8])
+    np.testing.assert_allclose(force[:2], [0.5 * np.pi / 8, 0.9 * np.pi / 8])
     # Obstacle on the left: the turn is the other way, the braking the same.
     left = ObstacleAvoidance(k_u=0.5, k_w=0.9, d0=1.0).force(0.5, -np.pi / 4)
-    np.testing.assert_allclose(left, [0.5 * np.pi / 8, -0.9 * np.pi / 8])
+    np.testing.assert_allclose(left[:2], [0.5 * np.pi / 8, -0.9 * np.pi / 8])
+
+
+@pytest.mark.parametrize(
+    "alpha, lateral",  # (d0 - d) = 0.5, k_u = 0.5; the triangle of sin(alpha): alpha up to pi/2
+    [(0.0, 0.0), (np.pi / 4, 0.25 * np.pi / 4), (np.pi / 2, 0.25 * np.pi / 2),
+     (-np.pi / 3, -0.25 * np.pi / 3)],
+)  # fmt: skip
+def test_obstacle_lateral_force_pushes_a_holonomic_base_away(alpha, lateral):
+    """Obstacle on the right (alpha > 0): push left (+y), the most for one abeam."""
+    avoidance = ObstacleAvoidance(k_u=0.5, k_w=0.9, d0=1.0)
+    assert avoidance.force(0.5, alpha)[2] == pytest.approx(lateral)
+    assert avoidance.force(1.5, alpha)[2] == 0.0  # beyond d0
+    state = SecondaryInput(np.zeros(3), 0.5, alpha, 1.0)
+    for n_base, lateral_index in ((3, 1), (2, None)):
+        lam = ObstacleAvoidance(k_u=0.5, k_w=0.9, d0=1.0).contribution(state, n_base, n_base + 3)
+        if lateral_index is None:  # a unicycle: the paper's two terms only
+            assert np.count_nonzero(lam) <= 2
+        else:
+            assert np.sign(lam[lateral_index]) == np.sign(lateral)
 
 
 def test_obstacle_impedance_is_first_order_mass_damper():

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from conftest import DATA_DIR, REPO_ROOT
 
+from pbvs_pin.base import Omnidirectional
 from pbvs_pin.catalogue import PIONEER_MOUNT, RECIPES, build_robot
 from pbvs_pin.cli import main
 from pbvs_pin.exceptions import ScenarioError
@@ -136,6 +137,15 @@ def test_drive_keys_give_a_platform_without_wheels_a_drive(tmp_path):
     np.testing.assert_allclose(robot.velocity_limits[:2], [0.5, 2.5])
 
 
+def test_an_omnidirectional_drive_gets_its_limits(tmp_path):
+    """The same platform without wheels, holonomic: vx, vy and omega with the limits given."""
+    drive = 'drive = "omnidirectional"\nspeed_limit = 0.5\nyaw_rate_limit = 0.8\nhome = [0.0]\n'
+    robot = load_scenario(_scenario_file(tmp_path, WHEELLESS_ASSEMBLY + drive)).robot.build()
+    assert robot.base == Omnidirectional(0.5, 0.8)
+    assert robot.velocity_names[:3] == ("vx", "vy", "omega")
+    np.testing.assert_allclose(robot.velocity_limits[:3], [0.5, 0.5, 0.8])
+
+
 def test_home_overrides_the_arm_posture(tmp_path):
     home = [0.3, -0.4, 0.2]
     table = f'\n[robot]\nname = "pioneer_cyton"\nhome = {home}\n'
@@ -183,12 +193,20 @@ def test_simulate_uses_the_given_robot():
         ('urdf = "x.urdf"\ncamera_frame = "c"\nwheel_radius = -0.1\ntrack = 0.4\n'
          "wheel_speed_limit = 5.0\n", "robot.wheel_radius", "positive"),
         ('name = "pioneer_cyton"\narm_name = "ur5"\n', "robot.arm_name", "unknown key"),
+        ('name = "pioneer_cyton"\ndrive = "omnidirectional"\n', "robot.drive", "known"),
+        ('urdf = "x.urdf"\ncamera_frame = "c"\ndrive = "omnidirectional"\nwheel_radius = 0.1\n'
+         "track = 0.4\nwheel_speed_limit = 5.0\n", "robot.drive", "no drive axle"),
+        ('urdf = "x.urdf"\ncamera_frame = "c"\nspeed_limit = 0.5\n', "robot.speed_limit",
+         'add drive = "omnidirectional"'),
+        ('urdf = "x.urdf"\ncamera_frame = "c"\ndrive = "mecanum"\n', "robot.drive",
+         "omnidirectional"),
     ],
     ids=[
         "name-and-urdf", "name-and-assembly", "urdf-and-assembly", "missing-camera-frame",
         "missing-urdf", "missing-camera-link", "missing-camera-pose", "missing-mount",
         "missing-arm", "bad-mount-length", "drive-on-shipped", "partial-drive", "bad-drive",
-        "unknown-key",
+        "unknown-key", "drive-on-shipped-name", "omnidirectional-with-wheels",
+        "omnidirectional-limit-alone", "unknown-drive",
     ],
 )  # fmt: skip
 def test_bad_table_names_file_and_field(tmp_path, table, field, fragment):

@@ -144,7 +144,8 @@ class State(NamedTuple):
     u_dot: np.ndarray
     """Low-pass filtered command derivative [u/s]. Shape (n,)."""
     impedance_velocity: np.ndarray
-    """``[u_obs, omega_obs]``, the obstacle impedance's output [m/s, rad/s]. Shape (2,)."""
+    """``[u_obs, omega_obs, vy_obs]``, the obstacle impedance's output [m/s, rad/s, m/s].
+    Shape (3,)."""
     u: np.ndarray
     """Command of eq. (34) [u]. Shape (n,)."""
     v_ref: np.ndarray
@@ -302,7 +303,7 @@ def settings(block: np.ndarray) -> Settings:
 def state_size(indices: np.ndarray) -> int:
     """Length of ``state``: the sum of the :class:`State` fields' sizes."""
     n, r, _, _ = sizes(indices)
-    return 7 * n + 2 + r + r * n + 3 * r + STEP_SCALARS
+    return 7 * n + 3 + r + r * n + 3 * r + STEP_SCALARS
 
 
 @njit(cache=True, inline="always")
@@ -311,7 +312,7 @@ def state_views(state: np.ndarray, indices: np.ndarray) -> State:
     n, r, _, _ = sizes(indices)
     u_previous, a = cut(state, 0, n)
     u_dot, a = cut(state, a, n)
-    impedance_velocity, a = cut(state, a, 2)
+    impedance_velocity, a = cut(state, a, 3)
     u, a = cut(state, a, n)
     v_ref, a = cut(state, a, n)
     nu, a = cut(state, a, n)

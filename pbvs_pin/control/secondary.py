@@ -3,6 +3,8 @@ r"""Secondary objectives: the vector ``Lambda`` of eq. (16), projected into J's 
 .. math:: \Lambda = [-u_{obs},\ \omega_{obs},\ f_1(\tilde\theta_1), \dots,
           f_{n_a}(\tilde\theta_{n_a})]^T
 
+(a holonomic base's ``vy`` gets the lateral repulsion of :func:`obstacle_force`).
+
 Each objective adds its contribution to ``Lambda`` (shape (n,)); a scenario switches each
 one on or off.
 """
@@ -36,19 +38,49 @@ def joint_limit_term(
 
 @njit(cache=True, inline="always")
 def obstacle_force(distance: float, angle: float, k_u: float, k_w: float, d0: float) -> np.ndarray:
-    r"""Fictitious force of eqs. (17)-(18) before the impedance, ``[F_u, F_w]``.
+    r"""Fictitious force of eqs. (17)-(18) before the impedance, ``[F_u, F_w, F_y]``.
 
-    .. math:: F_u = k_{uobs} (d_0 - d)(\tfrac{\pi}{2} - |\alpha|),\quad
-              F_\omega = k_{\omega obs} (d_0 - d)\, \mathrm{sign}(\alpha)(\tfrac{\pi}{2} - |\alpha|)
+    .. math:: F_u = k_{uobs} (d_0 - d)(\tfrac{\pi}{2} - |\alpha|),
 
-    zero when ``d >= d_0`` or nothing is seen (``d`` infinite).
+    .. math:: F_\omega = k_{\omega obs} (d_0 - d)\, \mathrm{sign}(\alpha)
+              (\tfrac{\pi}{2} - |\alpha|),
+
+    zero when ``d >= d_0`` or nothing is seen (``d`` infinite). ``F_y`` pushes a holonomic
+    base sideways, away from the obstacle (an extension: the paper's platform cannot move
+    sideways). As ``pi/2 - |alpha|`` stands for the repulsion's forward part ``cos alpha``, its
+    lateral part ``sin alpha`` is taken as the same triangle shifted by ``pi/2``:
+
+    .. math:: F_y = k_{uobs} (d_0 - d)\, \mathrm{sign}(\alpha)
+              \big(\tfrac{\pi}{2} - |\tfrac{\pi}{2} - |\alpha||\big),
+
+    largest for an obstacle abeam, positive (to the left) for one on the right.
     """
-    force = np.zeros(2)
+    force = np.zeros(3)
     if np.isfinite(distance) and distance < d0:
         reach = (d0 - distance) * (0.5 * np.pi - abs(angle))
         force[0] = k_u * reach
         force[1] = k_w * np.sign(angle) * reach
+        abeam = 0.5 * np.pi - abs(0.5 * np.pi - abs(angle))
+        force[2] = k_u * (d0 - distance) * np.sign(angle) * abeam
     return force
+
+
+@njit(cache=True, inline="always")
+def add_obstacle_terms(secondary: np.ndarray, impedance: np.ndarray, n_base: int) -> None:
+    """Add ``-u_obs`` to the forward speed and ``omega_obs`` to the yaw rate of ``Lambda``.
+
+    With a holonomic base (``n_base`` 3: ``vx, vy, omega``) the lateral output goes to ``vy``.
+
+    Args:
+        secondary: ``Lambda``, updated. Shape (n,).
+        impedance: ``[u_obs, omega_obs, vy_obs]``, the impedance's output. Shape (3,).
+        n_base: Number of base velocities (0: a fixed base, no terms).
+    """
+    if n_base >= 2:
+        secondary[0] -= impedance[0]
+        secondary[n_base - 1] += impedance[1]
+    if n_base == 3:
+        secondary[1] += impedance[2]
 
 
 @njit(cache=True, inline="always")
@@ -123,19 +155,21 @@ class ObstacleAvoidance(SecondaryObjective):
         _check_positive("ObstacleAvoidance", k_u=k_u, k_w=k_w, d0=d0, mass=mass, damping=damping)
         self.k_u, self.k_w, self.d0 = k_u, k_w, d0
         self.mass, self.damping = mass, damping
-        self.velocity = np.zeros(2)
+        self.velocity = np.zeros(3)
 
     def force(self, distance: float, angle: float) -> np.ndarray:
-        """Fictitious force ``[F_u, F_w]`` of eqs. (17)-(18) before the impedance."""
+        """Fictitious force ``[F_u, F_w, F_y]`` of eqs. (17)-(18) before the impedance."""
         return obstacle_force(distance, angle, self.k_u, self.k_w, self.d0)
 
     def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
-        """``[-u_obs, omega_obs, 0, ...]``; the impedance state advances by ``state.dt``."""
+        """``[-u_obs, omega_obs, 0, ...]`` (:func:`add_obstacle_terms`), advancing the impedance.
+
+        The impedance state advances by ``state.dt``.
+        """
         force = self.force(state.obstacle_distance, state.obstacle_angle)
         self.velocity = impedance_step(self.velocity, force, self.mass, self.damping, state.dt)
         out = np.zeros(n)
-        if n_base >= 2:
-            out[0], out[n_base - 1] = -self.velocity[0], self.velocity[1]
+        add_obstacle_terms(out, self.velocity, n_base)
         return out
 
 

@@ -168,10 +168,12 @@ def kinematic_law(
 def _reference_gains(values: tuple, model: MobileManipulator) -> tuple:
     """Gains written for the paper's robot (2 base + 3 arm values) fit any robot.
 
-    The base values are kept and the last arm value is repeated for every arm joint.
+    The base values go to the robot's base velocities
+    (:meth:`pbvs_pin.base.BaseAdapter.per_velocity`: the forward speed's to ``vx`` and ``vy``
+    of a holonomic base) and the last arm value is repeated for every arm joint.
     """
-    if len(values) == 5 and model.n != 5 and model.n_base == 2:
-        return (*values[:2], *([values[-1]] * model.n_arm))
+    if len(values) == 5 and (model.n_base, model.n_arm) != (2, 3):
+        return (*model.base.per_velocity(*values[:2]), *([values[-1]] * model.n_arm))
     return values
 
 

@@ -43,6 +43,7 @@ from pbvs_pin.control.secondary import (
     JointLimitAvoidance,
     ObstacleAvoidance,
     SecondaryObjective,
+    add_obstacle_terms,
     impedance_step,
     joint_limit_term,
     obstacle_force,
@@ -130,9 +131,7 @@ def fused_control_step(
             out.impedance_velocity, force, setting.impedance_mass, setting.impedance_damping, dt
         )
         out.impedance_velocity[:] = impedance
-        if n_base >= 2:
-            secondary[0] -= impedance[0]
-            secondary[n_base - 1] += impedance[1]
+        add_obstacle_terms(secondary, impedance, n_base)
     if not np.isnan(age):  # the prediction: the frame's points moved by phat_dot, eq. (2) at q
         image, image_depths = predict_points(
             world, target_velocity, age, translation, rotation, setting.focal

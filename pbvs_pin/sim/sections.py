@@ -73,6 +73,19 @@ class RobotSection(Section):
         None, "Largest wheel speed [rad/s]; from the platform URDF if absent.", sign=POSITIVE,
         optional=float,
     )  # fmt: skip
+    drive: str = key(
+        "differential", "differential (a drive axle: u, omega) or omnidirectional (a holonomic "
+        "base driven in vx, vy, omega: mecanum, omni or swerve wheels).",
+        choices=("differential", "omnidirectional"),
+    )  # fmt: skip
+    speed_limit: float | None = key(
+        None, "Omnidirectional drive: largest vx and vy [m/s]; 1.0 if absent.", sign=POSITIVE,
+        optional=float,
+    )  # fmt: skip
+    yaw_rate_limit: float | None = key(
+        None, "Omnidirectional drive: largest omega [rad/s]; 1.0 if absent.", sign=POSITIVE,
+        optional=float,
+    )  # fmt: skip
     arm_root: str = key("", "First link of the arm URDF mounted (at mount); its root if absent.")
     arm_tip: str = key(
         "", "Last link of the arm URDF mounted; with arm_root or alone, only the chain between "
