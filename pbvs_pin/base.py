@@ -54,6 +54,7 @@ class BaseAdapter(abc.ABC):
         value goes to every linear velocity (``u``; ``vx`` and ``vy`` of a holonomic base), the
         yaw value to ``omega``.
         """
+        linear, yaw = as_number("linear", linear), as_number("yaw", yaw)
         return tuple(yaw if name == "omega" else linear for name in self.velocity_names)
 
 

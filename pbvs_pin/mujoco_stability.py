@@ -42,7 +42,8 @@ def warn_if_tipping(model: mujoco.MjModel, data: mujoco.MjData, label: str) -> N
         warnings.warn(
             f"{label}: at the start its centre of mass lies {-margin:.3f} m outside its wheels' "
             "support: it tips over on the MuJoCo plant (the Pinocchio plant's planar base "
-            "cannot tip); mount the arm further back, or start it folded (robot.initial_arm)",
+            "cannot tip); mount the arm further back or lower, or give it a home posture that "
+            "keeps the centre of mass over the wheels (robot.home)",
             PbvsWarning,
             stacklevel=3,
         )

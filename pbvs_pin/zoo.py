@@ -22,6 +22,7 @@ import site
 import sysconfig
 import time
 import tomllib
+import warnings
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -32,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from pbvs_pin.assembly import PACKAGE_PREFIX
-from pbvs_pin.exceptions import PbvsError
+from pbvs_pin.exceptions import PbvsError, PbvsWarning
 from pbvs_pin.outputs import Output
 from pbvs_pin.report import claim_met
 from pbvs_pin.robot import MobileManipulator
@@ -166,8 +167,10 @@ def run_robot(
                     robot = spec.build(scenario.camera.intrinsics())
                     info = {"dof": robot.n, "base_dof": robot.n_base,
                             "joint_types": joint_types(robot)}  # fmt: skip
-                log = simulate(scenario, robot=robot)
-                row |= info | _figures(log, summarize(log))
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always", PbvsWarning)
+                    log = simulate(scenario, robot=robot)
+                row |= info | _figures(log, summarize(log)) | _warning(caught)
             except Exception as err:  # a failing run is a row of the table; the zoo goes on
                 message = str(err) if isinstance(err, PbvsError) else f"{type(err).__name__}: {err}"
                 row |= info | {"error": message}
@@ -175,6 +178,12 @@ def run_robot(
             path.write_text(json.dumps(row, indent=1))
             rows.append(row)
     return rows
+
+
+def _warning(caught: list[warnings.WarningMessage]) -> dict[str, str]:
+    """The run's project warnings as ``{"warning": ...}`` (each once), or nothing."""
+    messages = dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, PbvsWarning))
+    return {"warning": "; ".join(messages)} if messages else {}
 
 
 def _figures(log: Any, summary: dict[str, Any]) -> dict[str, Any]:
@@ -267,12 +276,15 @@ def _rst_row(cells: list[str]) -> list[str]:
     return [f"   * - {cells[0]}"] + [f"     - {cell}" for cell in cells[1:]]
 
 
-def errors(rows: list[dict[str, Any]]) -> str:
-    """The runs that raised, one bullet per robot, plant and error, naming the experiments."""
+def errors(rows: list[dict[str, Any]], field: str = "error") -> str:
+    """The runs that raised, one bullet per robot, plant and error, naming the experiments.
+
+    With ``field = "warning"``: the runs that warned (a robot that tips over on MuJoCo).
+    """
     failed: dict[tuple[str, str, str], list[str]] = {}
     for row in rows:
-        if "error" in row:
-            key = (row["robot"], row["engine"], row["error"])
+        if field in row:
+            key = (row["robot"], row["engine"], row[field])
             failed.setdefault(key, []).append(row["experiment"])
     return "".join(
         f"- ``{robot}`` on {engine} ({', '.join(experiments)}): {_portable(error)}\n"
@@ -322,7 +334,10 @@ def command(args: argparse.Namespace) -> None:
     rows = run_zoo(args.folder, args.out, tuple(args.experiments.split(",")), engines,
                    args.duration, args.workers)  # fmt: skip
     print(f"{len(rows)} runs in {time.perf_counter() - started:.0f} s")
-    table = zoo_table(rows, engines) + ("\n" + errors(rows) if errors(rows) else "")
+    table = zoo_table(rows, engines)
+    for field, title in (("error", "Runs that raised"), ("warning", "Runs that warned")):
+        if errors(rows, field):
+            table += f"\n{title}:\n\n{errors(rows, field)}"
     if args.page:
         write_block(Path(args.page), table)
     else:

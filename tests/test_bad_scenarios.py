@@ -134,6 +134,8 @@ READ_CASES = [
      "obstacles[0].radius"),
     ("obstacle-bad-kind", appended('[[obstacles]]\nkind = "cone"\nx = 3.0\ny = 0.0'),
      "obstacles[0].kind"),
+    ("obstacle-kind-list", appended('[[obstacles]]\nkind = []\nx = 3.0\ny = 0.0'),
+     "obstacles[0].kind"),
     ("obstacle-inf", appended('[[obstacles]]\nkind = "circle"\nx = inf\ny = 0.0\nradius = 0.2'),
      "obstacles[0].x"),
     ("obstacle-text", appended('[[obstacles]]\nkind = "circle"\nx = "far"\ny = 0.0\n'

@@ -124,6 +124,8 @@ CALLS = {
                                        lambda r: {"u": 0.1, "omega": 0.2}),
     "Omnidirectional": (lambda r: Omnidirectional, lambda r: {"max_speed": 1.0,
                                                               "max_yaw_rate": 1.0}),
+    "BaseAdapter.per_velocity": (lambda r: Omnidirectional().per_velocity,
+                                 lambda r: {"linear": 0.7, "yaw": 1.0}),
     "HomeCriteria": (lambda r: HomeCriteria, lambda r: {"min_height": 0.5, "max_height": 1.0}),
     "ImageMeasurement": (lambda r: ImageMeasurement, lambda r: {"points": POINTS,
                                                                 "depths": [1.0, 1.0]}),

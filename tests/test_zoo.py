@@ -172,3 +172,15 @@ def test_an_explicit_drive_on_the_mujoco_plant_is_refused_with_the_way_out():
     assert "'link_right_wheel' has no cylinder or sphere geometry" in message
     assert "an explicit drive (wheel_radius, track, wheel_speed_limit)" in message
     assert 'plant.engine = "pinocchio"' in message and "DifferentialDrive" not in message
+
+
+def test_a_robot_that_tips_over_on_mujoco_is_listed_with_its_warning(tmp_path):
+    """Panda on the Pioneer tips over on the MuJoCo plant (tests/test_mujoco_stability.py):
+    its row keeps the plant's warning, and the page lists it under the runs that warned."""
+    folder = tmp_path / "robots"
+    folder.mkdir()
+    shutil.copy(ROBOTS / "pioneer_panda.toml", folder)
+    rows = run_zoo(folder, tmp_path / "out", ("experiment1",), ("mujoco",), duration=0.2)
+    assert "tips over on the MuJoCo plant" in rows[0]["warning"]
+    assert errors(rows, "warning").startswith("- ``pioneer_panda`` on mujoco (experiment1): ")
+    assert errors(rows) == ""

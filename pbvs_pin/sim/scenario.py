@@ -228,7 +228,8 @@ def _sections() -> str:
 def _obstacle(source: str, index: int, table: Any) -> CircleObstacle | BoxObstacle:
     """Build one ``[[obstacles]]`` table."""
     where = f"obstacles[{index}]"
-    if not isinstance(table, dict) or table.get("kind") not in OBSTACLE_KINDS:
+    kind = table.get("kind") if isinstance(table, dict) else None
+    if not isinstance(kind, str) or kind not in OBSTACLE_KINDS:
         raise ScenarioError(source, f"{where}.kind", f"expected one of {tuple(OBSTACLE_KINDS)}")
     cls = OBSTACLE_KINDS[table["kind"]]
     allowed = {spec.name for spec in fields(cls)}
