@@ -13,28 +13,6 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, inline="always")
-def arm_state(
-    qpos: np.ndarray,
-    qvel: np.ndarray,
-    arm_qpos: np.ndarray,
-    arm_dof: np.ndarray,
-    arm_q_index: np.ndarray,
-    continuous: np.ndarray,
-    q: np.ndarray,
-    v: np.ndarray,
-    n_base: int,
-) -> None:
-    """The arm joints' part of :func:`true_state`: ``q``'s arm entries, ``v[n_base:]``."""
-    for j in range(arm_qpos.shape[0]):
-        angle, index = qpos[arm_qpos[j]], arm_q_index[j]
-        if continuous[j]:
-            q[index], q[index + 1] = np.cos(angle), np.sin(angle)
-        else:
-            q[index] = angle
-        v[n_base + j] = qvel[arm_dof[j]]
-
-
 @njit(cache=True)
 def true_state(
     qpos: np.ndarray,
@@ -43,17 +21,24 @@ def true_state(
     arm_dof: np.ndarray,
     arm_q_index: np.ndarray,
     continuous: np.ndarray,
+    holonomic: bool,
     q: np.ndarray,
     v: np.ndarray,
     body: np.ndarray,
 ) -> None:
     r"""The controller's ``q`` and ``v`` and the footprint's body velocity from MuJoCo's state.
 
-    The free joint's quaternion ``(w, x, y, z) = qpos[3:7]`` gives the footprint's rotation
-    ``R``; its heading is the normalised ``(R_00, R_10) = (1 - 2 (y^2 + z^2), 2 (x y + w z))``.
-    MuJoCo's free-joint velocity is ``qvel[0:3]`` (linear, world) and ``qvel[3:6]`` (angular,
-    body): forward and lateral speeds are ``(R^T qvel[0:3])_{0,1}``, the yaw rate
-    ``(R qvel[3:6])_2``.
+    A differential drive's root has a free joint: its quaternion ``(w, x, y, z) = qpos[3:7]``
+    gives the footprint's rotation ``R``; its heading is the normalised
+    ``(R_00, R_10) = (1 - 2 (y^2 + z^2), 2 (x y + w z))``. MuJoCo's free-joint velocity is
+    ``qvel[0:3]`` (linear, world) and ``qvel[3:6]`` (angular, body): forward and lateral speeds
+    are ``(R^T qvel[0:3])_{0,1}``, the yaw rate ``(R qvel[3:6])_2``; ``v`` starts with
+    ``[u, omega]``.
+
+    A holonomic base's root has planar joints, a slide along the world's x, one along its y
+    and a hinge about z: ``qpos[0:3] = (x, y, theta)``, ``qvel[0:3]`` the world velocity and the
+    yaw rate. The body velocity is ``[R(theta)^T qvel[0:2], qvel[2]]``, which is also ``v``'s
+    ``[vx, vy, omega]``.
 
     Args:
         qpos: ``data.qpos``. Shape (nq_mj,).
@@ -62,51 +47,37 @@ def true_state(
         arm_dof: Their dof addresses. Shape (n_arm,).
         arm_q_index: Their index in the controller's ``q``. Shape (n_arm,).
         continuous: Whether each is stored as (cos, sin) in ``q``. Shape (n_arm,).
+        holonomic: The root has planar joints (else a free joint).
         q: Written: configuration (other entries kept). Shape (nq,).
-        v: Written: ``[u, omega, arm rates]``. Shape (n,).
+        v: Written: ``[base velocities, arm rates]``. Shape (n,).
         body: Written: forward and lateral speed [m/s], yaw rate [rad/s]. Shape (3,).
     """
-    w, x, y, z = qpos[3], qpos[4], qpos[5], qpos[6]
-    r00, r01 = 1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z)
-    r10, r11 = 2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z)
-    r20, r21, r22 = 2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)
-    norm = np.hypot(r00, r10)
-    q[0], q[1], q[2], q[3] = qpos[0], qpos[1], r00 / norm, r10 / norm
-    body[0] = r00 * qvel[0] + r10 * qvel[1] + r20 * qvel[2]
-    body[1] = r01 * qvel[0] + r11 * qvel[1] + r21 * qvel[2]
-    body[2] = r20 * qvel[3] + r21 * qvel[4] + r22 * qvel[5]
-    v[0], v[1] = body[0], body[2]
-    arm_state(qpos, qvel, arm_qpos, arm_dof, arm_q_index, continuous, q, v, 2)
-
-
-@njit(cache=True)
-def planar_true_state(
-    qpos: np.ndarray,
-    qvel: np.ndarray,
-    arm_qpos: np.ndarray,
-    arm_dof: np.ndarray,
-    arm_q_index: np.ndarray,
-    continuous: np.ndarray,
-    q: np.ndarray,
-    v: np.ndarray,
-    body: np.ndarray,
-) -> None:
-    r""":func:`true_state` of a holonomic base on MuJoCo's planar joints.
-
-    The root body's joints are a slide along the world's x, one along its y and a hinge about
-    z: ``qpos[0:3] = (x, y, theta)``, ``qvel[0:3]`` the world velocity and the yaw rate. The
-    body velocity is ``[R(theta)^T qvel[0:2], qvel[2]]``, which is also ``v``'s
-    ``[vx, vy, omega]``.
-
-    Args: as :func:`true_state`; ``v`` is ``[vx, vy, omega, arm rates]``.
-    """
-    c, s = np.cos(qpos[2]), np.sin(qpos[2])
-    q[0], q[1], q[2], q[3] = qpos[0], qpos[1], c, s
-    body[0] = c * qvel[0] + s * qvel[1]
-    body[1] = -s * qvel[0] + c * qvel[1]
-    body[2] = qvel[2]
-    v[0], v[1], v[2] = body[0], body[1], body[2]
-    arm_state(qpos, qvel, arm_qpos, arm_dof, arm_q_index, continuous, q, v, 3)
+    if holonomic:
+        c, s = np.cos(qpos[2]), np.sin(qpos[2])
+        q[0], q[1], q[2], q[3] = qpos[0], qpos[1], c, s
+        body[0] = c * qvel[0] + s * qvel[1]
+        body[1] = -s * qvel[0] + c * qvel[1]
+        body[2] = qvel[2]
+        v[0], v[1], v[2] = body[0], body[1], body[2]
+    else:
+        w, x, y, z = qpos[3], qpos[4], qpos[5], qpos[6]
+        r00, r01 = 1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z)
+        r10, r11 = 2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z)
+        r20, r21, r22 = 2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)
+        norm = np.hypot(r00, r10)
+        q[0], q[1], q[2], q[3] = qpos[0], qpos[1], r00 / norm, r10 / norm
+        body[0] = r00 * qvel[0] + r10 * qvel[1] + r20 * qvel[2]
+        body[1] = r01 * qvel[0] + r11 * qvel[1] + r21 * qvel[2]
+        body[2] = r20 * qvel[3] + r21 * qvel[4] + r22 * qvel[5]
+        v[0], v[1] = body[0], body[2]
+    n_base = 3 if holonomic else 2
+    for j in range(arm_qpos.shape[0]):
+        angle, index = qpos[arm_qpos[j]], arm_q_index[j]
+        if continuous[j]:
+            q[index], q[index + 1] = np.cos(angle), np.sin(angle)
+        else:
+            q[index] = angle
+        v[n_base + j] = qvel[arm_dof[j]]
 
 
 @njit(cache=True)
@@ -232,7 +203,7 @@ def servo_commands(
         yaw_integral: Updated: the gyro loop's integral ``e_g`` [rad]. Shape (1,).
         yaw_gain: ``1 / T_g`` [1/s] (0: no gyro loop).
         yaw_integral_limit: Clamp of ``e_g`` [rad].
-        holonomic: The root is MuJoCo's planar joints (:func:`planar_true_state`): no wheels,
+        holonomic: The root is MuJoCo's planar joints (:func:`true_state`): no wheels,
             no gyro loop; the platform actuators follow the arm's, their commands the lagged
             platform reference turned into the world frame.
         arm_dof: The arm joints' dof addresses. Shape (n_arm,).

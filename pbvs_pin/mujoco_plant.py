@@ -61,12 +61,7 @@ from pbvs_pin import frames
 from pbvs_pin.assembly import DRIVE_ADVICE, DriveAxle, UrdfSource, find_drive_axle
 from pbvs_pin.base import DifferentialDrive, Omnidirectional
 from pbvs_pin.exceptions import DriveAxleNotFound, GainError, UrdfError
-from pbvs_pin.mujoco_kernels import (
-    arm_gravity_load,
-    planar_true_state,
-    servo_commands,
-    true_state,
-)
+from pbvs_pin.mujoco_kernels import arm_gravity_load, servo_commands, true_state
 from pbvs_pin.mujoco_payload import UnknownPayload
 from pbvs_pin.mujoco_stability import warn_if_tipping
 
@@ -497,10 +492,9 @@ class MujocoPlant:
         New arrays every step: a caller may keep the previous step's.
         """
         self._q, self._v, self._body = self._neutral.copy(), np.empty(self.robot.n), np.empty(3)
-        read = planar_true_state if self.holonomic else true_state
-        read(
+        true_state(
             self._qpos, self._qvel, self._arm_qpos, self._arm_dof, self.robot.arm_q_indices,
-            self.robot.arm_continuous, self._q, self._v, self._body,
+            self.robot.arm_continuous, self.holonomic, self._q, self._v, self._body,
         )  # fmt: skip
 
     @property
