@@ -54,6 +54,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
 import yourdfpy
 from lxml import etree
 
@@ -290,7 +291,9 @@ class MujocoPlant:
             joints' time constants, damping and friction feed-forward, effort and speed limits
             and gravity compensation; the platform's speed limits bound the wheel references.
             The wheels have their own servos (a skid-steer platform has no servo on ``u`` and
-            ``omega``; each wheel's motor controller has one).
+            ``omega``; each wheel's motor controller has one). A holonomic base has no wheels:
+            its planar joints' servos (:data:`HOLONOMIC_TIME_CONSTANT`) replace them, and the
+            wheel and yaw-loop arguments below do not apply to it.
         q: Initial configuration of the controller's model. Shape (nq,).
         dt: Integration step [s].
         friction: Sliding friction coefficient of the drive wheels on the ground.
@@ -445,7 +448,7 @@ class MujocoPlant:
         )  # fmt: skip
         self.reset(q)
         if self.holonomic:
-            self._set_yaw_servo(HOLONOMIC_TIME_CONSTANT)
+            self._set_yaw_servo(HOLONOMIC_TIME_CONSTANT, q)
         else:
             warn_if_tipping(self.model, self.data, robot.source)
         if settle > 0:
@@ -456,14 +459,17 @@ class MujocoPlant:
             self._platform_state[:] = 0.0
             self.data.time = 0.0
 
-    def _set_yaw_servo(self, time_constant: float) -> None:
-        """The yaw servo's gain: the robot's inertia about the yaw joint at the start over ``T``.
+    def _set_yaw_servo(self, time_constant: float, q: np.ndarray) -> None:
+        """The yaw servo's gain: the robot's inertia about the yaw axis at ``q`` over ``T``.
 
-        The slides' gain is the robot's mass over ``T`` (set when the actuators were added),
-        so that the base follows its lagged reference within about ``T``.
+        The inertia is the URDF's, from the controller's model (Pinocchio's ``S^T M S``), which
+        the servos are tuned on: without ``mass_scale`` or an unknown payload. The slides' gain
+        is the URDF's mass over ``T`` (set when the actuators were added), so that the base
+        follows its lagged reference within about ``T``.
         """
-        mujoco.mj_fullM(self.model, self.data, self._full_mass)
-        gain = self._full_mass[2, 2] / time_constant
+        robot = self.robot
+        mass = pin.crba(robot.model, robot.data, robot.check_configuration(q))
+        gain = (robot.selection.T @ mass @ robot.selection)[2, 2] / time_constant
         yaw = self.model.actuator(PLANAR_JOINTS[2][0]).id
         self.model.actuator_gainprm[yaw, 0] = gain
         self.model.actuator_biasprm[yaw, 2] = -gain

@@ -36,9 +36,19 @@ def support_margin(model: mujoco.MjModel, data: mujoco.MjData) -> float:
 
 
 def warn_if_tipping(model: mujoco.MjModel, data: mujoco.MjData, label: str) -> None:
-    """Warn (:class:`PbvsWarning`) when the centre of mass lies outside the wheels' support."""
+    """Warn (:class:`PbvsWarning`) when the centre of mass lies outside the wheels' support.
+
+    The support's rectangle is larger than the triangle of two wheels and a caster, so a robot
+    that tips over such a triangle's edge may go unwarned.
+    """
     margin = support_margin(model, data)
-    if margin < 0.0:
+    if margin == -np.inf:
+        warnings.warn(
+            f"{label}: at the start nothing of it touches the MuJoCo plant's floor",
+            PbvsWarning,
+            stacklevel=3,
+        )
+    elif margin < 0.0:
         warnings.warn(
             f"{label}: at the start its centre of mass lies {-margin:.3f} m outside its wheels' "
             "support: it tips over on the MuJoCo plant (the Pinocchio plant's planar base "

@@ -171,6 +171,9 @@ def _check_drive_kind(spec: RobotTable, form: str, wheels_given: bool) -> None:
     omnidirectional = spec.drive == "omnidirectional"
     if form == "name" and omnidirectional:
         raise GainError("a shipped robot's drive is known: remove it", "drive")
+    for name in OMNIDIRECTIONAL_KEYS:
+        if form == "name" and given(spec, name):
+            raise GainError("a shipped robot's limits are known: remove it", name)
     if omnidirectional and wheels_given:
         raise GainError(
             "an omnidirectional drive has no drive axle: remove wheel_radius, track and "

@@ -212,6 +212,11 @@ class ServoModel:
         revolute, prismatic = as_number("revolute", revolute), as_number("prismatic", prismatic)
         _check_joints_move_mass(robot)
         if len(platform) != robot.n_base:  # forward and yaw (or one value) per base velocity
+            if len(platform) not in (1, 2):
+                raise GainError(
+                    f"ServoModel.from_robot: platform: expected 1, 2 or {robot.n_base} time "
+                    f"constants [s], got {len(platform)}"
+                )
             platform = robot.base.per_velocity(platform[0], platform[-1])
         taus, damping, friction = [*platform], [0.0] * robot.n_base, [0.0] * robot.n_base
         effort = [np.inf] * robot.n_base

@@ -170,6 +170,11 @@ def run_robot(
                 with warnings.catch_warnings(record=True) as caught:
                     warnings.simplefilter("always", PbvsWarning)
                     log = simulate(scenario, robot=robot)
+                for other in caught:  # only the project's warnings go into the row
+                    if not issubclass(other.category, PbvsWarning):
+                        warnings.showwarning(
+                            other.message, other.category, other.filename, other.lineno
+                        )
                 row |= info | _figures(log, summarize(log)) | _warning(caught)
             except Exception as err:  # a failing run is a row of the table; the zoo goes on
                 message = str(err) if isinstance(err, PbvsError) else f"{type(err).__name__}: {err}"
@@ -243,7 +248,7 @@ def _cell(row: dict[str, Any]) -> list[str]:
     ]
 
 
-BASE_KINDS = {2: "differential", 3: "omnidirectional"}
+BASE_KINDS = {0: "fixed", 2: "differential", 3: "omnidirectional"}
 """The table's name of a base by its number of velocities."""
 
 FIGURES = ("max err last 5 s [px]", "lost", "past limits [rad or m]", "osc. [px]", "net share",

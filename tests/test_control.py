@@ -519,22 +519,25 @@ def test_obstacle_force_by_hand():
 
 
 @pytest.mark.parametrize(
-    "alpha, lateral",  # (d0 - d) = 0.5, k_u = 0.5; the triangle of sin(alpha): alpha up to pi/2
+    "alpha, lateral",  # (d0 - d) = 0.5, k_u = 0.5; the triangle of sin(alpha), peak at pi/2
     [(0.0, 0.0), (np.pi / 4, 0.25 * np.pi / 4), (np.pi / 2, 0.25 * np.pi / 2),
-     (-np.pi / 3, -0.25 * np.pi / 3)],
+     (-np.pi / 3, -0.25 * np.pi / 3), (3 * np.pi / 4, 0.25 * np.pi / 4)],
 )  # fmt: skip
 def test_obstacle_lateral_force_pushes_a_holonomic_base_away(alpha, lateral):
-    """Obstacle on the right (alpha > 0): push left (+y), the most for one abeam."""
+    """Obstacle on the right (alpha > 0): push left (+y), the most for one abeam. Lambda gets
+    ``[-u_obs, vy_obs, omega_obs, 0...]`` on a holonomic base, the paper's ``[-u_obs, omega_obs,
+    0...]`` on a unicycle."""
     avoidance = ObstacleAvoidance(k_u=0.5, k_w=0.9, d0=1.0)
-    assert avoidance.force(0.5, alpha)[2] == pytest.approx(lateral)
+    force = avoidance.force(0.5, alpha)
+    assert force[2] == pytest.approx(lateral)
     assert avoidance.force(1.5, alpha)[2] == 0.0  # beyond d0
     state = SecondaryInput(np.zeros(3), 0.5, alpha, 1.0)
-    for n_base, lateral_index in ((3, 1), (2, None)):
-        lam = ObstacleAvoidance(k_u=0.5, k_w=0.9, d0=1.0).contribution(state, n_base, n_base + 3)
-        if lateral_index is None:  # a unicycle: the paper's two terms only
-            assert np.count_nonzero(lam) <= 2
-        else:
-            assert np.sign(lam[lateral_index]) == np.sign(lateral)
+    decay = 1.0 - np.exp(-1.0 * 1.0 / 0.5)  # the impedance's step from rest: (1 - e^(-b dt/m)) F/b
+    u_obs, omega_obs, vy_obs = decay * force
+    holonomic = ObstacleAvoidance(k_u=0.5, k_w=0.9, d0=1.0).contribution(state, 3, 6)
+    np.testing.assert_allclose(holonomic, [-u_obs, vy_obs, omega_obs, 0, 0, 0], atol=1e-15)
+    unicycle = ObstacleAvoidance(k_u=0.5, k_w=0.9, d0=1.0).contribution(state, 2, 5)
+    np.testing.assert_allclose(unicycle, [-u_obs, omega_obs, 0, 0, 0], atol=1e-15)
 
 
 def test_obstacle_impedance_is_first_order_mass_damper():

@@ -200,13 +200,14 @@ def test_simulate_uses_the_given_robot():
          'add drive = "omnidirectional"'),
         ('urdf = "x.urdf"\ncamera_frame = "c"\ndrive = "mecanum"\n', "robot.drive",
          "omnidirectional"),
+        ('name = "tiago"\nyaw_rate_limit = 0.5\n', "robot.yaw_rate_limit", "limits are known"),
     ],
     ids=[
         "name-and-urdf", "name-and-assembly", "urdf-and-assembly", "missing-camera-frame",
         "missing-urdf", "missing-camera-link", "missing-camera-pose", "missing-mount",
         "missing-arm", "bad-mount-length", "drive-on-shipped", "partial-drive", "bad-drive",
         "unknown-key", "drive-on-shipped-name", "omnidirectional-with-wheels",
-        "omnidirectional-limit-alone", "unknown-drive",
+        "omnidirectional-limit-alone", "unknown-drive", "limit-on-shipped-name",
     ],
 )  # fmt: skip
 def test_bad_table_names_file_and_field(tmp_path, table, field, fragment):

@@ -172,7 +172,7 @@ def _reference_gains(values: tuple, model: MobileManipulator) -> tuple:
     (:meth:`pbvs_pin.base.BaseAdapter.per_velocity`: the forward speed's to ``vx`` and ``vy``
     of a holonomic base) and the last arm value is repeated for every arm joint.
     """
-    if len(values) == 5 and (model.n_base, model.n_arm) != (2, 3):
+    if len(values) == 5 and model.n != 5 and model.n_base in (2, 3):
         return (*model.base.per_velocity(*values[:2]), *([values[-1]] * model.n_arm))
     return values
 
