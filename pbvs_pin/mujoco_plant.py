@@ -450,7 +450,7 @@ class MujocoPlant:
         if self.holonomic:
             self._set_yaw_servo(HOLONOMIC_TIME_CONSTANT, q)
         else:
-            warn_if_tipping(self.model, self.data, robot.source)
+            warn_if_tipping(self.data, robot.source)
         if settle > 0:
             for _ in range(round(settle / dt)):
                 self.step(np.zeros(robot.n))

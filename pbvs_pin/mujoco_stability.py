@@ -17,7 +17,7 @@ import numpy as np
 from pbvs_pin.exceptions import PbvsWarning
 
 
-def support_margin(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+def support_margin(data: mujoco.MjData) -> float:
     """How far [m] the centre of mass lies inside the support (negative: outside).
 
     The support is the rectangle of the floor contacts' extent in the platform's frame
@@ -35,13 +35,13 @@ def support_margin(model: mujoco.MjModel, data: mujoco.MjData) -> float:
     return float(np.min(np.concatenate([centre[:2] - low, high - centre[:2]])))
 
 
-def warn_if_tipping(model: mujoco.MjModel, data: mujoco.MjData, label: str) -> None:
+def warn_if_tipping(data: mujoco.MjData, label: str) -> None:
     """Warn (:class:`PbvsWarning`) when the centre of mass lies outside the wheels' support.
 
     The support's rectangle is larger than the triangle of two wheels and a caster, so a robot
     that tips over such a triangle's edge may go unwarned.
     """
-    margin = support_margin(model, data)
+    margin = support_margin(data)
     if margin == -np.inf:
         warnings.warn(
             f"{label}: at the start nothing of it touches the MuJoCo plant's floor",

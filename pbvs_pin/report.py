@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 import math
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -337,8 +337,13 @@ def rendered_results(summaries: list[dict[str, Any]]) -> str:
     """
     lines = [RENDERED_BEGIN, "", ".. list-table::", "   :header-rows: 1", ""]
     for cells in [RENDERED_COLUMNS, *map(_rendered_cells, summaries)]:
-        lines += [f"   * - {cells[0]}", *(f"     - {cell}" for cell in cells[1:])]
+        lines += rst_row(cells)
     return "\n".join([*lines, "", RENDERED_END])
+
+
+def rst_row(cells: Sequence[str]) -> list[str]:
+    """One row of an RST list-table, as its lines."""
+    return [f"   * - {cells[0]}"] + [f"     - {cell}" for cell in cells[1:]]
 
 
 def _rendered_cells(s: dict[str, Any]) -> tuple[str, ...]:

@@ -171,16 +171,15 @@ def _check_drive_kind(spec: RobotTable, form: str, wheels_given: bool) -> None:
     omnidirectional = spec.drive == "omnidirectional"
     if form == "name" and omnidirectional:
         raise GainError("a shipped robot's drive is known: remove it", "drive")
-    for name in OMNIDIRECTIONAL_KEYS:
-        if form == "name" and given(spec, name):
-            raise GainError("a shipped robot's limits are known: remove it", name)
     if omnidirectional and wheels_given:
         raise GainError(
             "an omnidirectional drive has no drive axle: remove wheel_radius, track and "
             "wheel_speed_limit, or set drive = \"differential\"", "drive",
         )  # fmt: skip
-    for name in OMNIDIRECTIONAL_KEYS:
-        if given(spec, name) and not omnidirectional:
+    for name in (name for name in OMNIDIRECTIONAL_KEYS if given(spec, name)):
+        if form == "name":
+            raise GainError("a shipped robot's limits are known: remove it", name)
+        if not omnidirectional:
             raise GainError('limits an omnidirectional drive: add drive = "omnidirectional"', name)
 
 

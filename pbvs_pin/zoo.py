@@ -35,7 +35,7 @@ import numpy as np
 from pbvs_pin.assembly import PACKAGE_PREFIX
 from pbvs_pin.exceptions import PbvsError, PbvsWarning
 from pbvs_pin.outputs import Output
-from pbvs_pin.report import claim_met
+from pbvs_pin.report import claim_met, rst_row
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.shipped import urdf_dir
 
@@ -263,7 +263,7 @@ def zoo_table(rows: list[dict[str, Any]], engines: tuple[str, ...] = ENGINES) ->
     ]
     by_run = {(r["robot"], r["experiment"], r["engine"]): r for r in rows}
     lines = [".. list-table::", "   :header-rows: 1", ""]
-    lines += _rst_row(heads)
+    lines += rst_row(heads)
     for robot, experiment in dict.fromkeys((r["robot"], r["experiment"]) for r in rows):
         first = next(r for r in rows if r["robot"] == robot)
         cells = [robot, first["package"], str(first.get("dof", "")),
@@ -272,13 +272,8 @@ def zoo_table(rows: list[dict[str, Any]], engines: tuple[str, ...] = ENGINES) ->
         for engine in engines:
             row = by_run.get((robot, experiment, engine))
             cells += _cell(row) if row is not None else ["not run", "", "", "", "", ""]
-        lines += _rst_row(cells)
+        lines += rst_row(cells)
     return "\n".join(lines) + "\n"
-
-
-def _rst_row(cells: list[str]) -> list[str]:
-    """A list-table row."""
-    return [f"   * - {cells[0]}"] + [f"     - {cell}" for cell in cells[1:]]
 
 
 def errors(rows: list[dict[str, Any]], field: str = "error") -> str:

@@ -56,7 +56,7 @@ def tipping():
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", PbvsWarning)
             plant = MujocoPlant(robot, ServoModel.from_robot(robot), q)
-        margin = support_margin(plant.model, plant.data)
+        margin = support_margin(plant.data)
         found[name] = (centre, [str(w.message) for w in caught], margin, _tilt_after(plant, 1.0))
     return found
 
@@ -89,7 +89,7 @@ def test_the_reference_robot_stands():
         warnings.simplefilter("error", PbvsWarning)
         plant = MujocoPlant(robot, ServoModel.from_robot(robot), robot.home())
     centre = pin.centerOfMass(robot.model, robot.data, robot.home())
-    assert support_margin(plant.model, plant.data) == pytest.approx(
+    assert support_margin(plant.data) == pytest.approx(
         PIONEER_HALF_WHEELBASE - abs(centre[0]), abs=0.005
     )
     assert _tilt_after(plant, 1.0) < 0.5
