@@ -51,6 +51,7 @@ from pbvs_pin.camera import MIN_DEPTH
 from pbvs_pin.camera_frame import CameraFrame
 from pbvs_pin.compile_cache import compile_notice
 from pbvs_pin.control import layout
+from pbvs_pin.control.balanced import joint_room
 from pbvs_pin.control.encoders import TIME_TOLERANCE, EncoderHistory
 from pbvs_pin.control.kinematic import ControlOutput
 from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
@@ -207,6 +208,7 @@ class Controller:
         self.law = kinematic_law(settings, model, self.latency)
         self.compensator = compensator(settings, model)
         self.objectives = secondary_objectives(settings, model, self.posture_target)
+        self._arm_limits = model.arm_position_limits()
         spec = settings.estimator
         self.tracker = TargetTracker(model, spec.filter(), spec.predict, spec.hold, spec.smoothing)
         self.history.clear()
@@ -464,9 +466,10 @@ class Controller:
         xi, jacobian, object_jacobian = self.features.jacobians_from_measurement(
             model.camera, measurement, camera_jacobian, rotation.T
         )
+        room = joint_room(theta, *self._arm_limits, model.n_base, model.n)
         output = self.law.step(
             xi - self.xi_d, jacobian, object_jacobian, velocity, secondary,
-            upright_row(rotation, camera_jacobian),
+            upright_row(rotation, camera_jacobian), room,
         )  # fmt: skip
         return output, (jacobian, object_jacobian)
 

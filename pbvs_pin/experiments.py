@@ -435,12 +435,12 @@ def _passivity_cells(result: dict[str, Any]) -> list[str]:
     return [
         _inequality(p9["lhs_integral_nu_input"], ">=", p9["rhs_minus_V1_0"], p9["holds"]),
         _inequality(
-            p14["lhs_integral_nu_sq"],
+            p14["lhs_integral_nu_feedback"],
             "<=",
             p14["perfect_tracking_rhs_V1_0"],
             p14["holds_with_beta_1_zero"],
         ),
-        _inequality(p27["lhs_integral_nu_sq"], "<=", p27["rhs"], p27["holds"]),
+        _inequality(p27["lhs_integral_nu_feedback"], "<=", p27["rhs"], p27["holds"]),
     ]
 
 

@@ -144,9 +144,9 @@ def test_the_report_tables_the_idealised_runs_behind_the_findings():
             "scenario": name,
             "passivity_9": {"lhs_integral_nu_input": -0.05, "rhs_minus_V1_0": -0.06,
                             "holds": True},
-            "passivity_14": {"lhs_integral_nu_sq": 0.09, "perfect_tracking_rhs_V1_0": 0.06,
+            "passivity_14": {"lhs_integral_nu_feedback": 0.09, "perfect_tracking_rhs_V1_0": 0.06,
                              "holds_with_beta_1_zero": False},
-            "passivity_27": {"lhs_integral_nu_sq": lhs27, "rhs": 0.1, "holds": lhs27 <= 0.1},
+            "passivity_27": {"lhs_integral_nu_feedback": lhs27, "rhs": 0.1, "holds": lhs27 <= 0.1},
         }  # fmt: skip
 
     ideal = {"all": [result(n, 0.09) for n in EXPERIMENTS]}

@@ -164,11 +164,11 @@ def _passivity_rows(p: dict[str, Any], label: str) -> list[tuple[str, str]]:
         (f"V1(T) - V1(0); identity residual, {label}",
          f"{_fmt(p9['V1_T_minus_V1_0'])}; {_fmt(p9['identity_residual'])}"),
         (f"(13)/(14), {label}: int ||nu||^2 dt <= beta = V1(0) + beta_1",
-         f"{_fmt(p14['lhs_integral_nu_sq'])} <= {_fmt(p14['rhs_beta'])} "
+         f"{_fmt(p14['lhs_integral_nu_feedback'])} <= {_fmt(p14['rhs_beta'])} "
          f"(beta_1 = {_fmt(p14['beta_1'])}): {_fmt(p14['holds'])}"),
         (f"(14) with beta_1 = 0, {label}: int ||nu||^2 dt <= V1(0)",
-         f"{_fmt(p14['lhs_integral_nu_sq'])} <= {_fmt(p14['perfect_tracking_rhs_V1_0'])}: "
+         f"{_fmt(p14['lhs_integral_nu_feedback'])} <= {_fmt(p14['perfect_tracking_rhs_V1_0'])}: "
          f"{_fmt(p14['holds_with_beta_1_zero'])}"),
         (f"(27), {label}: int ||nu||^2 dt <= V1(0) + int nu^T (v - u) dt",
-         f"{_fmt(p27['lhs_integral_nu_sq'])} <= {_fmt(p27['rhs'])}: {_fmt(p27['holds'])}"),
+         f"{_fmt(p27['lhs_integral_nu_feedback'])} <= {_fmt(p27['rhs'])}: {_fmt(p27['holds'])}"),
     ]  # fmt: skip

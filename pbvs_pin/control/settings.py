@@ -154,7 +154,7 @@ def kinematic_law(
         k2=tuple(per_dof(settings, "controller.k2", _reference_gains(spec.k2, model), n)),
         feature_scale=spec.feature_scale,
         weights=_weights(settings, spec.weights, n),
-        use_pseudoinverse_feedback=spec.feedback == "pseudoinverse",
+        feedback=spec.feedback,
         upright=spec.upright,
         upright_rate=spec.upright_rate,
         camera_period=settings.sample_period,

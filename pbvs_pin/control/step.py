@@ -31,6 +31,7 @@ import pinocchio as pin
 from numba import njit
 
 from pbvs_pin.control import layout
+from pbvs_pin.control.balanced import joint_room
 from pbvs_pin.control.compensation import (
     DynamicCompensator,
     compensation_law,
@@ -155,10 +156,11 @@ def fused_control_step(
     safety = Safety(
         setting.upright, setting.upright_rate, setting.camera_period, setting.loop_gain_margin
     )
+    room_up, room_down = joint_room(theta, p.lower, p.upper, n_base, n)
     law = passivity_law(
         error, jacobian, object_jacobian, target_velocity, secondary, p.k, p.k1, p.k2,
-        p.weight_inverse, p.pseudo_inverse_damping, p.velocity_limits,
-        setting.pseudoinverse_feedback, upright, safety,
+        p.weight_inverse, p.pseudo_inverse_damping, p.velocity_limits, setting.feedback_law,
+        upright, safety, room_up, room_down,
     )  # fmt: skip
     u = law.u
     # eq. (20), with the low-pass filtered derivative of the command
@@ -255,7 +257,7 @@ class FusedControlStep:
         p.settings[:] = layout.Settings(
             focal=model.camera.focal_px,
             feature_scale=controller.gains.feature_scale,
-            pseudoinverse_feedback=controller.gains.use_pseudoinverse_feedback,
+            feedback_law=controller.gains.feedback_law,
             derivative_time_constant=compensator.tau,
             n_base=model.n_base,
             upright=controller.gains.upright,

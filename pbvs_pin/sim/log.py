@@ -45,6 +45,7 @@ from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.manipulability import arm_jacobian, manipulability
 from pbvs_pin.outputs import Output, check_output
 from pbvs_pin.sim.obstacles import clearance
+from pbvs_pin.sim.passivity_signals import feedback_terms, passivity_terms, true_passivity_terms
 from pbvs_pin.sim.scenario import obstacle_table
 from pbvs_pin.sim.sensing import planar_pose
 from pbvs_pin.validation import as_path
@@ -61,8 +62,8 @@ CHANNELS = (
     "clearance", "manipulability", "storage", "storage_v2", "nu", "passivity_input",
     "lambda_min", "gamma", "saturated", "damped", "target_lost", "valid", "loop_gain",
     "gain_limited", "upright_angle", "nu_true", "storage_true", "passivity_input_true",
-    "xi_measured", "predicted", "v_measured", "platform_pose", "platform_pose_measured",
-    "wheel_angles", "body_velocity", "wheel_velocity",
+    "feedback", "feedback_true", "xi_measured", "predicted", "v_measured", "platform_pose",
+    "platform_pose_measured", "wheel_angles", "body_velocity", "wheel_velocity",
 )  # fmt: skip
 """Names of the arrays in a log."""
 
@@ -330,17 +331,25 @@ class RunRecorder:
         self._object_jacobians = self._object_jacobians[:samples]
         recorded = {name: np.array(values[:samples]) for name, values in self.rows.items()}
         derived = _derived_in_one_pass(setup, self.footprint, recorded["t"], recorded["q"])
+        jacobians = np.array(self._jacobians)
         derived.update(
-            _passivity_terms(
+            passivity_terms(
                 setup,
-                np.array(self._jacobians),
+                jacobians,
                 np.array(self._object_jacobians),
                 recorded["v"],
                 derived["target_velocity"],
                 recorded["target_velocity_estimate"],
             )
         )
-        derived.update(_true_passivity_terms(setup, derived, recorded["v"]))
+        derived.update(true_passivity_terms(setup, derived, recorded["v"]))
+        derived["feedback"] = feedback_terms(
+            setup, recorded["xi"] - setup.xi_d, jacobians, recorded["nu"], derived["arm"],
+        )  # fmt: skip
+        derived["feedback_true"] = feedback_terms(
+            setup, derived["xi_true"] - setup.xi_d, derived.pop("jacobian_true"),
+            derived["nu_true"], derived["arm"],
+        )  # fmt: skip
         derived["xi_d"] = np.broadcast_to(setup.xi_d, recorded["xi"].shape).copy()
         derived.update(
             _slip(setup, recorded["t"], derived["platform_pose"], recorded["wheel_angles"])
@@ -424,77 +433,6 @@ def _derived_in_one_pass(
         arm_jacobians.append(arm_jacobian(model, q))
     out["manipulability"] = manipulability(np.array(arm_jacobians))
     return out
-
-
-def _passivity_terms(
-    setup: Setup,
-    jacobians: np.ndarray,
-    object_jacobians: np.ndarray,
-    v: np.ndarray,
-    target_velocity: np.ndarray,
-    estimated_velocity: np.ndarray,
-) -> dict[str, np.ndarray]:
-    """``v + J# J_o pdot`` (input of eq. 9), ``lambda_min(J J^T)`` and ``gamma`` (eq. 31).
-
-    All in controller units, for every sample at once; NaN where there was no measurement.
-
-    Args:
-        setup: The run's blocks.
-        jacobians: ``J`` [px]. Shape (N, r, n).
-        object_jacobians: ``J_o`` [px/m]. Shape (N, r, 3).
-        v: Actuated velocities. Shape (N, n).
-        target_velocity: True target velocities [m/s]. Shape (N, 3).
-        estimated_velocity: Estimated target velocities [m/s]. Shape (N, 3).
-    """
-    scale = setup.law.gains.feature_scale
-    jacobian, object_jacobian = jacobians / scale, object_jacobians / scale
-    seen = np.isfinite(jacobian).all(axis=(1, 2)) & np.isfinite(object_jacobian).all(axis=(1, 2))
-    samples, _, n = jacobian.shape
-    passivity_input = np.full((samples, n), np.nan)
-    lambda_min = np.full(samples, np.nan)
-    for i in np.flatnonzero(seen):
-        pinv = setup.law.pseudo_inverse(jacobian[i])[0]
-        passivity_input[i] = v[i] + pinv @ (object_jacobian[i] @ target_velocity[i])
-    if seen.any():
-        gram = jacobian[seen] @ jacobian[seen].transpose(0, 2, 1)
-        lambda_min[seen] = np.linalg.eigvalsh(gram)[:, 0]
-    gamma = np.einsum("sij,sj->si", object_jacobian, target_velocity - estimated_velocity)
-    return {"passivity_input": passivity_input, "lambda_min": lambda_min, "gamma": gamma}
-
-
-def _true_passivity_terms(
-    setup: Setup, derived: dict[str, np.ndarray], v: np.ndarray
-) -> dict[str, np.ndarray]:
-    r"""The true-state passivity set: ``nu``, ``V1`` and the input of eq. (9) from the truth.
-
-    With ``e = (xi_true - xi_d) / feature_scale`` and the true robot's ``J``, ``J_o``:
-
-    .. math::
-        \nu = J^T K_c(e)\, e \ (9),\qquad V_1 = \sum_i k_i (|e_i| - \ln(1 + |e_i|)) \ (7),
-        \qquad \text{input} = v + J^\# J_o \dot p
-
-    with the true ``v`` and ``pdot`` and the controller's weighted pseudo-inverse of the true
-    ``J``. NaN where the target is behind the camera. Pops ``jacobian_true`` and
-    ``object_jacobian_true`` from ``derived`` (they are not logged).
-
-    Args:
-        setup: The run's blocks.
-        derived: Channels of :func:`_derived_in_one_pass`.
-        v: Actuated velocities. Shape (N, n).
-    """
-    scale = setup.law.gains.feature_scale
-    jacobian = derived.pop("jacobian_true") / scale
-    object_jacobian = derived.pop("object_jacobian_true") / scale
-    k = setup.law.feature_gains(setup.features.size)
-    error = (derived["xi_true"] - setup.xi_d) / scale
-    magnitude = np.abs(error)
-    nu = np.einsum("sij,si->sj", jacobian, k * error / (1.0 + magnitude))
-    storage = np.sum(k * (magnitude - np.log1p(magnitude)), axis=1)
-    inputs = np.full_like(v, np.nan, dtype=float)
-    for i in np.flatnonzero(np.isfinite(jacobian).all(axis=(1, 2))):
-        pinv = setup.law.pseudo_inverse(jacobian[i])[0]
-        inputs[i] = v[i] + pinv @ (object_jacobian[i] @ derived["target_velocity"][i])
-    return {"nu_true": nu, "storage_true": storage, "passivity_input_true": inputs}
 
 
 def _slip(

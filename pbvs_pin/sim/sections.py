@@ -15,7 +15,7 @@ from typing import Any, ClassVar, Self
 
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import REFERENCE_ROBOT
-from pbvs_pin.control.kinematic import ServoGains
+from pbvs_pin.control.kinematic import FEEDBACK_LAWS, ServoGains
 from pbvs_pin.control.upright import LOOP_GAIN_MARGIN, RESTORING_RATE
 from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.exceptions import GainError
@@ -379,8 +379,10 @@ class ControllerSection(Section):
     )
     feedback: str = key(
         "transpose",
-        "transpose (-J^T K_c e, the paper's) or pseudoinverse (-J# K_c e).",
-        choices=("transpose", "pseudoinverse"),
+        "transpose (-J^T K_c e, the paper's), pseudoinverse (-J# K_c e) or balanced (every "
+        "direction of J J^T at the loop-gain margin per camera sample, in velocity-limit units, "
+        "joints at their stops left out; pbvs_pin.control.kinematic.balanced_feedback).",
+        choices=FEEDBACK_LAWS,
     )
     ibvs_gain: float = key(0.5, "lambda of the classic IBVS law [1/s].", sign=POSITIVE)
     rate: float = key(100.0, "Control rate [Hz].", sign=POSITIVE)
@@ -411,7 +413,7 @@ class ControllerSection(Section):
             k2=self.k2,
             feature_scale=self.feature_scale,
             weights=self.weights,
-            use_pseudoinverse_feedback=self.feedback == "pseudoinverse",
+            feedback=self.feedback,
             upright=self.upright,
             upright_rate=self.upright_rate,
             loop_gain_margin=self.loop_gain_margin,
