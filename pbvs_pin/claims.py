@@ -24,6 +24,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from pbvs_pin.exceptions import PbvsError
 from pbvs_pin.sim.metrics import FINAL_WINDOW, OSCILLATION_CUTOFF_HZ, TRANSIENT
 
 RELATIONS: dict[str, Callable[[float, float], bool]] = {
@@ -63,6 +64,18 @@ class Clause:
     threshold: float | Callable[[dict[str, Any]], float]
     unit: str
     optional: bool = False
+
+    def __post_init__(self) -> None:
+        """Refuse a relation other than those of :data:`RELATIONS`.
+
+        Raises:
+            PbvsError: Naming the clause and the relation.
+        """
+        if self.relation not in RELATIONS:
+            raise PbvsError(
+                f"clause {self.name!r}: relation {self.relation!r}; expected one of "
+                f"{list(RELATIONS)}"
+            )
 
     def judge(self, summary: dict[str, Any]) -> dict[str, Any]:
         """The clause on a run: ``name, figure, value, relation, threshold, unit, holds``."""
@@ -242,6 +255,10 @@ def verdict_parts(judgement: dict[str, Any]) -> tuple[str, str]:
 
 
 def verdict_text(judgement: dict[str, Any]) -> str:
-    """``met``, ``NOT met: <failed clauses>`` or ``not judged: <why>`` (:func:`judge`)."""
+    """``met``, ``NOT met: <failed clauses>`` or ``not judged: <why>``.
+
+    Args:
+        judgement: A verdict of :func:`judge`, or a summary that holds one (``summary.json``).
+    """
     head, detail = verdict_parts(judgement)
     return f"{head}: {detail}" if detail else head

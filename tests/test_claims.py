@@ -14,8 +14,17 @@ import math
 
 import pytest
 
-from pbvs_pin.claims import CLAIMS, clause_text, failed, judge, too_short, verdict_text
+from pbvs_pin.claims import (
+    CLAIMS,
+    Clause,
+    clause_text,
+    failed,
+    judge,
+    too_short,
+    verdict_text,
+)
 from pbvs_pin.cli import main
+from pbvs_pin.exceptions import PbvsError
 from pbvs_pin.report import readme_results
 from pbvs_pin.zoo import progress_line, zoo_table
 
@@ -109,6 +118,11 @@ def test_a_run_too_short_for_the_rules_window_is_not_judged(end, reason):
         assert verdict["met"] is None and verdict["not_judged"] == reason
         assert verdict_text(verdict) == f"not judged: {reason}"
         assert failed(verdict)[0]["value"] == 40.0  # the figures are still given
+
+
+def test_a_clause_with_an_unknown_relation_is_refused():
+    with pytest.raises(PbvsError, match=r"clause 'last 5 s': relation '=<'; expected one of"):
+        Clause("last 5 s", "max abs(e) < 8 px", "max_abs_error_final_window_px", "=<", 8.0, "px")
 
 
 def test_a_scenario_without_a_claim_is_not_judged():
