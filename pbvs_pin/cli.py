@@ -165,16 +165,23 @@ def _setting(text: str) -> tuple[str, object]:
 
 
 def _verdict(summary: dict) -> str | None:
-    """One line: whether a shipped experiment's run meets the paper's claim, and the rule."""
-    from pbvs_pin.report import CLAIMS, claim_met
+    """Two lines: whether a shipped experiment's run meets the paper's claim, and the rule.
 
-    met = claim_met(summary)
-    if met is None:
+    The first names the failed clauses with their figures (every clause when all hold), or
+    why the run is not judged (:func:`pbvs_pin.claims.judge`); the second gives the rule.
+    """
+    from pbvs_pin.claims import CLAIMS, clause_text, judge, verdict_parts
+
+    judgement = judge(summary)
+    if judgement["rule"] is None:
         return None
-    claim = CLAIMS[summary["scenario"]]
+    head, detail = verdict_parts(judgement)
+    if head == "met":
+        detail = "; ".join(map(clause_text, judgement["clauses"]))
+    said = {"met": "meets", "NOT met": "does NOT meet", "not judged": "is not judged against"}
     return (
-        f"verdict: {summary['scenario']} {'meets' if met else 'does NOT meet'} the paper's "
-        f"claim ({claim.text}); rule: {claim.rule}"
+        f"verdict: {summary['scenario']} {said[head]} the paper's claim "
+        f"({CLAIMS[summary['scenario']].text}): {detail}\nrule: {judgement['rule']}"
     )
 
 

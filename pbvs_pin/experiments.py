@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from pbvs_pin.catalogue import OTHER_ROBOTS, REFERENCE_ROBOT, ROBOT_NAMES
+from pbvs_pin.claims import judge
 from pbvs_pin.exceptions import (
     GainError,
     OutputError,
@@ -50,7 +51,7 @@ from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import Scenario, load_scenario, parse_scenario
 
 PAPER_CLAIMS = {name: claim.text for name, claim in CLAIMS.items()}
-"""The paper's claim for each experiment (§5); the rules are in :data:`pbvs_pin.report.CLAIMS`."""
+"""The paper's claim for each experiment (§5); the rules are in :data:`pbvs_pin.claims.CLAIMS`."""
 
 
 def run_scenario(
@@ -66,7 +67,9 @@ def run_scenario(
     """Simulate one scenario; write ``log.npz``, ``summary.json`` and figures into ``out``.
 
     The outputs are checked writable before the simulation starts; the log and summary are
-    written atomically (whole or not at all).
+    written atomically (whole or not at all). The summary holds the run's figures
+    (:func:`pbvs_pin.sim.metrics.summarize`) and its verdict by its experiment's rule
+    (:func:`pbvs_pin.claims.judge`: ``met``, ``not_judged``, ``rule``, ``clauses``).
 
     Args:
         scenario: A shipped name, a TOML path, or a loaded scenario.
@@ -108,6 +111,7 @@ def run_scenario(
         raise
     log.save(out)
     summary = summarize(log)
+    summary |= judge(summary)  # met, not_judged, rule, clauses
     write_json_atomically(out / "summary.json", summary)
     interrupt_point()  # a Ctrl-C held after the last logged instant: the run is saved
     try:

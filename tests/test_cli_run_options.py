@@ -109,15 +109,28 @@ def test_reproduce_takes_a_robot_file(tmp_path, monkeypatch):
     assert asked[0]["robots"] == (str(robot_file), "pioneer_ur5")
 
 
-def test_the_verdict_names_the_claim_and_its_rule():
+def test_the_verdict_names_the_claim_the_failed_clauses_and_the_rule():
     summary = {"scenario": "experiment4", "max_abs_error_final_window_px": 0.2,
                "target_lost_samples": 0, "joint_limit_violation": 0.0,
-               "oscillation_rms_px": 0.0}  # fmt: skip
-    line = cli._verdict(summary)
-    assert line.startswith("verdict: experiment4 meets the paper's claim (errors converge")
-    assert "rule: max abs(e) over the last 5 s < 0.5 px" in line
-    summary["max_abs_error_final_window_px"] = 0.7
-    assert "does NOT meet" in cli._verdict(summary)
+               "oscillation_rms_px": 0.0, "duration_s": 99.98}  # fmt: skip
+    verdict, rule = cli._verdict(summary).split("\n")
+    assert verdict == (
+        "verdict: experiment4 meets the paper's claim (errors converge to zero (perfect "
+        "knowledge)): last 5 s: 0.2 px < 0.5 px; target lost: 0 samples <= 0 samples; "
+        "past joint limits: 0 rad or m <= 0.01 rad or m; oscillation: 0 px < 3 px"
+    )
+    assert rule.startswith("rule: max abs(e) over the last 5 s < 0.5 px; target never lost")
+    summary |= {"max_abs_error_final_window_px": 0.7, "oscillation_rms_px": 3.25}
+    verdict = cli._verdict(summary).split("\n")[0]
+    assert verdict.endswith(
+        "does NOT meet the paper's claim (errors converge to zero (perfect knowledge)): "
+        "last 5 s: 0.7 px >= 0.5 px; oscillation: 3.25 px >= 3 px"
+    )
+    summary["duration_s"] = 2.98
+    assert cli._verdict(summary).split("\n")[0].endswith(
+        "is not judged against the paper's claim (errors converge to zero (perfect "
+        "knowledge)): run logged to 2.98 s, shorter than the rule's 5 s window"
+    )
     assert cli._verdict({**summary, "scenario": "my_own"}) is None
 
 

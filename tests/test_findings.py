@@ -28,7 +28,7 @@ def summary(name: str, final: float = 1.0, **changes) -> dict:
         "v_ref_at_limit_fraction": 0.0, "velocity_tracking_rms": 0.05,
         "velocity_tracking_rms_platform": 0.04, "velocity_tracking_rms_arm": 0.01,
         "odometry_drift_m": 0.0, "odometry_drift_rad": 0.0, "lateral_slip_rms_mps": 0.0,
-        "yaw_rate_ratio": None, "real_time_factor": 30.0,
+        "yaw_rate_ratio": None, "real_time_factor": 30.0, "duration_s": 30.0,
     }  # fmt: skip
     s.update(changes)
     return s
@@ -42,13 +42,30 @@ def analysis(p9: bool = True, p14: bool = True, p27: bool = True) -> dict:
     }
 
 
-def test_the_verdict_names_the_rule_it_was_judged_by():
+def test_the_verdict_names_the_rule_it_was_judged_by_and_the_failed_clauses():
     met, failed = summary("experiment3"), summary("experiment1", final=9.0)
     assert verdict(met) == "met (experiment3's rule)"
-    assert verdict(failed) == "NOT met (experiment1's rule)"
+    assert verdict(failed) == "NOT met (experiment1's rule: last 5 s: 9 px >= 8 px)"
     assert verdict(summary("my_scenario")) == "-"
     assert "| met (experiment3's rule) |" in run_row(met)
-    assert "| NOT met (experiment1's rule) |" in engine_row(failed)
+    assert "| NOT met (experiment1's rule: last 5 s: 9 px >= 8 px) |" in engine_row(failed)
+    short = summary("experiment1", duration_s=2.98)
+    assert verdict(short) == (
+        "not judged (experiment1's rule: run logged to 2.98 s, shorter than the rule's 5 s window)"
+    )
+
+
+def test_other_robots_not_met_name_their_failed_clauses():
+    others = [
+        summary("experiment1", robot="pioneer_ur5"),
+        summary("experiment2", robot="stretch_re1", final=47.6, oscillation_rms_px=4.1),
+        summary("experiment3", robot="stretch_re1", duration_s=3.0),
+    ]
+    text = findings_section([], others, [], [], [])
+    assert (
+        "- **Other robots**: 1 of 3 runs meet their experiment's rule; not met: stretch_re1 "
+        "Experiment 2 (last 5 s, oscillation), stretch_re1 Experiment 3 (not judged)."
+    ) in text
 
 
 def test_claims_are_counted_and_each_rule_is_quoted():

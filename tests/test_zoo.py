@@ -87,6 +87,7 @@ def test_short_zoo_table_and_errors(short_zoo, tmp_path):
     lines = [line for line in table.splitlines() if line.startswith("   * - ")]
     assert len(lines) == 1 + 3  # header, one robot and experiment per line
     assert "hello-robot-stretch-urdf" in table and "5 P + 1 R" in table
+    assert table.count("     - not judged\n") == 2  # 1 s runs: shorter than the rule's window
     assert "broken" in errors(rows) and "robot.camera_link" in errors(rows)
     assert (out / "stretch_re1" / "experiment1_pinocchio.json").is_file()
     page = tmp_path / "zoo.rst"
@@ -106,7 +107,13 @@ def test_command_line_reuses_the_runs_and_writes_the_page(short_zoo, tmp_path, c
     status = main(["zoo", str(folder), "--out", str(out), "--page", str(page), "--engines",
                    "pinocchio", "--experiments", "experiment1", "--duration", str(DURATION)])  # fmt: skip
     assert status == 0
-    assert "3 runs in" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "3 runs in" in out
+    assert (  # each run's verdict as its robot finishes; 1 s runs are too short to judge
+        "stretch_re1 experiment1 pinocchio: not judged: run logged to 0.98 s, shorter than the "
+        "rule's 5 s window\n"
+    ) in out
+    assert "broken experiment1 pinocchio: error: " in out
     assert "stretch_re1" in page.read_text() and "no_such_link" in page.read_text()
 
 
