@@ -17,7 +17,9 @@ break the triangle inequality (:func:`pbvs_pin.urdf_checks.balance_inertia`).
 ``wheel_radius``, ``track`` and ``wheel_speed_limit`` (all three or none, URDF and assembly
 forms) replace the drive axle found in the platform's URDF by a
 :class:`~pbvs_pin.base.DifferentialDrive` with those values, whose planar root joint then sits
-at the platform's root link (:func:`drive_of`). Every error names the file and the dotted
+at the platform's root link (:func:`drive_of`). ``base_joints`` and ``forward_axis`` (URDF and
+assembly forms) say which joints model the platform's motion and which way it drives
+(:class:`~pbvs_pin.platform_frame.PlatformFrame`). Every error names the file and the dotted
 field at fault, and what to add.
 """
 
