@@ -19,7 +19,7 @@ from conftest import REPO_ROOT
 
 from pbvs_pin.assembly import load_urdf
 from pbvs_pin.base import Omnidirectional
-from pbvs_pin.catalogue import RECIPES
+from pbvs_pin.catalogue import PIONEER_MOUNT, RECIPES
 from pbvs_pin.exceptions import BaseJointsError, GainError, PbvsWarning, ScenarioError
 from pbvs_pin.platform_frame import PlatformFrame, fix_base_joints, warn_wheel_axles
 from pbvs_pin.robot import MobileManipulator
@@ -248,3 +248,19 @@ def test_the_closed_loop_keeps_the_target(tmp_path, extra, keys, velocities):
     late = log["t"] >= 3.0
     error = np.abs(log["xi_true"] - log["xi_d"])[late]
     assert np.max(error) < 8.0, np.max(error)  # [px], Experiment 1's settled claim
+
+
+def test_an_assembly_platform_with_base_joints_carries_the_arm(tmp_path):
+    pioneer = REPO_ROOT / "urdf" / "pioneer3at.urdf"
+    platform = tmp_path / "platform.urdf"
+    platform.write_text(pioneer.read_text().replace("</robot>", BASES["planar"] + "</robot>"))
+    arm = ("ur5", PIONEER_MOUNT, "tool0", (0.0,) * 6)
+    with pytest.warns(PbvsWarning, match="base_planar"):
+        robot = MobileManipulator.assemble(str(platform), *arm)
+    reference = MobileManipulator.assemble(str(pioneer), *arm)
+    assert robot.velocity_names == reference.velocity_names and robot.n == 2 + 6
+    # mount is in the platform's root link odom, which is base_link at zero: the same robot
+    q = robot.integrate(robot.neutral(), np.linspace(0.1, 0.8, 8), 1.0)
+    np.testing.assert_allclose(
+        robot.camera_pose(q).homogeneous, reference.camera_pose(q).homogeneous, atol=1e-12
+    )
