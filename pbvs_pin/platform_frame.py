@@ -249,10 +249,9 @@ def fix_base_joints(source: UrdfSource, names: tuple[str, ...] | None = None) ->
     if names is None:
         warnings.warn(
             f"{source.label}: joints {', '.join(describe(chain))} model the platform's motion from "
-            f"the root link {source.root_link()!r}: they are fixed at zero and the drive's "
-            "planar root joint moves the platform instead, not counted as arm joints (name "
-            f"them with base_joints = {list(fixed)} to silence this, or base_joints = [] to "
-            "keep them as arm joints)",
+            f"the root link {source.root_link()!r}: they are fixed at zero, not arm joints, and "
+            "the drive's planar root joint moves the platform (name them with base_joints = "
+            f"{list(fixed)} to silence this, or base_joints = [] to keep them as arm joints)",
             PbvsWarning,
             stacklevel=3,
         )
@@ -304,7 +303,7 @@ def warn_wheel_axles(source: UrdfSource, forward_axis: str, root: str) -> list[s
     """Warn if wheel joints turn about the platform's forward axis (its root link's x).
 
     A wheel joint is a continuous or revolute joint named (or whose child link is named) with
-    ``wheel``, hanging from the root link through fixed joints.
+    ``wheel``, hanging from the root link through fixed joints, with an ``<axis>``.
 
     Args:
         source: The description, its root link x along the forward axis.
@@ -322,6 +321,8 @@ def warn_wheel_axles(source: UrdfSource, forward_axis: str, root: str) -> list[s
     for joint in source.robot.joints:
         wheel = "wheel" in f"{joint.name} {joint.child}".lower()
         if not wheel or joint.type not in ("continuous", "revolute") or joint.parent not in poses:
+            continue
+        if joint.name in source.axisless:  # no <axis>: the drive axle's finder says so
             continue
         axis = (poses[joint.parent] @ _origin(joint))[:3, :3] @ np.asarray(
             joint.axis if joint.axis is not None else [1.0, 0.0, 0.0]
