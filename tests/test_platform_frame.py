@@ -191,6 +191,12 @@ def test_a_platform_driving_along_minus_y_is_warned_and_turned(tmp_path, referen
     np.testing.assert_allclose(
         robot.camera_pose(q).homogeneous, reference.camera_pose(q_ref).homogeneous, atol=1e-12
     )
+    # The robot as built, written and read back with the defaults, is the same robot.
+    again, caught = _build(str(robot.write_urdf(tmp_path / "written.urdf")))
+    assert caught == [] and vars(again.base) == pytest.approx(vars(robot.base), rel=1e-12)
+    np.testing.assert_allclose(  # the file holds the turn as rpy: rounded to ~1e-16
+        again.camera_pose(q).homogeneous, robot.camera_pose(q).homogeneous, atol=1e-12
+    )
 
 
 def test_forward_axis_is_checked():
