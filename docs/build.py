@@ -121,6 +121,8 @@ def constraint(spec: Any) -> str:
     meta, default = spec.metadata, spec.default
     if meta["choices"]:
         words = "one of " + ", ".join(f"``{c}``" for c in meta["choices"])
+    elif meta.get("names"):
+        words = "array of names or absent"
     elif meta["optional"] is not None:
         words = f"{meta['optional'].__name__} or absent"
     elif default is None or isinstance(default, tuple):

@@ -36,6 +36,10 @@ class ChainError(UrdfError):
     """``arm_tip`` does not hang below ``arm_root`` in the arm's URDF."""
 
 
+class BaseJointsError(UrdfError):
+    """``base_joints`` names joints that do not model a base's motion."""
+
+
 class FrameNotFound(PbvsError):
     """A link or frame name does not exist in a robot description."""
 

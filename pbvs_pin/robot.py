@@ -35,6 +35,7 @@ from pbvs_pin.assembly import (
 from pbvs_pin.base import BaseAdapter, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.exceptions import FrameNotFound, GainError, NoMovableJoint, UrdfError
+from pbvs_pin.platform_frame import PlatformFrame, fix_base_joints, turn_platform
 from pbvs_pin.urdf_checks import check_meshes
 from pbvs_pin.validation import as_array, as_number, as_path, as_se3
 
@@ -203,6 +204,7 @@ class MobileManipulator:
         camera: CameraIntrinsics | None = None,
         repair_inertia: bool = False,
         geometry_density: float | None = None,
+        platform_frame: PlatformFrame | None = None,
     ) -> MobileManipulator:
         """Load one URDF that holds platform, arm and camera frame.
 
@@ -218,6 +220,8 @@ class MobileManipulator:
             geometry_density: Give each link without ``<inertial>`` the inertia of its
                 geometry at this density [kg/m^3] (:mod:`pbvs_pin.link_inertia`); the links
                 are in :attr:`filled_inertias`. None: leave them massless.
+            platform_frame: The joints that model the base and the forward axis
+                (:mod:`pbvs_pin.platform_frame`); base joints recognised, x forward if None.
 
         Raises:
             UrdfError: Malformed file, or a platform without a usable drive axle.
@@ -226,7 +230,8 @@ class MobileManipulator:
         """
         source = load_urdf(path, repair_inertia, geometry_density)
         source.require_link(camera_frame)
-        return cls._from_source(source, camera_frame, base, camera)
+        fix_base_joints(source, (platform_frame or PlatformFrame()).base_joints)
+        return cls._from_source(source, camera_frame, base, camera, platform_frame)
 
     @classmethod
     def assemble(
@@ -242,6 +247,7 @@ class MobileManipulator:
         geometry_density: float | None = None,
         arm_root: str | None = None,
         arm_tip: str | None = None,
+        platform_frame: PlatformFrame | None = None,
     ) -> MobileManipulator:
         """Mount an arm on a platform and attach the camera optical frame.
 
@@ -265,6 +271,8 @@ class MobileManipulator:
                 arm, a pedestal); the arm URDF's root link when None.
             arm_tip: Last link of the chain mounted; ``camera_link`` when None. Neither
                 given: the whole arm URDF is mounted.
+            platform_frame: See :meth:`from_urdf`; applies to the base (``mount`` stays in
+                its root link).
 
         Raises:
             UrdfError: Malformed file, a platform without a usable drive axle, or an
@@ -275,6 +283,7 @@ class MobileManipulator:
         mount_pose = as_se3("mount", mount)
         optical_pose = as_se3("camera_pose", camera_pose)
         platform = load_urdf(base, repair_inertia, geometry_density)
+        fix_base_joints(platform, (platform_frame or PlatformFrame()).base_joints)
         chain = arm_root is not None or arm_tip is not None
         if chain and arm is None:
             raise UrdfError(platform.label, "arm_root and arm_tip need an arm to cut the chain of")
@@ -294,7 +303,7 @@ class MobileManipulator:
                 f"camera_link is already the optical frame {frames.CAMERA_OPTICAL!r}: expected "
                 "an identity camera_pose",
             )
-        robot = cls._from_source(platform, frames.CAMERA_OPTICAL, base_kind, camera)
+        robot = cls._from_source(platform, frames.CAMERA_OPTICAL, base_kind, camera, platform_frame)
         robot.mounted_links = tuple(names.values()) if arm is not None else ()
         return robot
 
@@ -305,7 +314,9 @@ class MobileManipulator:
         camera_frame: str,
         base: str | BaseAdapter,
         camera: CameraIntrinsics | None,
+        platform_frame: PlatformFrame | None = None,
     ) -> MobileManipulator:
+        turn_platform(source, (platform_frame or PlatformFrame()).forward_axis)
         description = copy.deepcopy(source)  # as built, before the base adapter edits it
         adapter = _base_adapter(base, source)
         xml = to_xml(source)

@@ -17,7 +17,9 @@ break the triangle inequality (:func:`pbvs_pin.urdf_checks.balance_inertia`).
 ``wheel_radius``, ``track`` and ``wheel_speed_limit`` (all three or none, URDF and assembly
 forms) replace the drive axle found in the platform's URDF by a
 :class:`~pbvs_pin.base.DifferentialDrive` with those values, whose planar root joint then sits
-at the platform's root link (:func:`drive_of`). Every error names the file and the dotted
+at the platform's root link (:func:`drive_of`). ``base_joints`` and ``forward_axis`` (URDF and
+assembly forms) say which joints model the platform's motion and which way it drives
+(:class:`~pbvs_pin.platform_frame.PlatformFrame`). Every error names the file and the dotted
 field at fault, and what to add.
 """
 
@@ -32,6 +34,7 @@ from pbvs_pin.base import BaseAdapter, DifferentialDrive, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import build_robot
 from pbvs_pin.exceptions import (
+    BaseJointsError,
     ChainError,
     DriveAxleNotFound,
     FrameNotFound,
@@ -45,6 +48,7 @@ from pbvs_pin.exceptions import (
 )
 from pbvs_pin.home import compute_home
 from pbvs_pin.placement import warn_placement
+from pbvs_pin.platform_frame import PlatformFrame
 from pbvs_pin.robot import MobileManipulator
 
 
@@ -69,6 +73,8 @@ class RobotTable(Protocol):
     drive: str
     speed_limit: float | None
     yaw_rate_limit: float | None
+    base_joints: tuple[str, ...] | None
+    forward_axis: str
     arm_root: str
     arm_tip: str
     repair_inertia: bool
@@ -157,6 +163,9 @@ def check_forms(spec: RobotTable) -> None:
         raise GainError("a shipped robot's inertias are valid: remove it", "repair_inertia")
     if forms[0] == "name" and spec.geometry_density is not None:
         raise GainError("a shipped robot has its inertias: remove it", "geometry_density")
+    if forms[0] == "name" and (spec.base_joints is not None or spec.forward_axis != "x"):
+        name = "base_joints" if spec.base_joints is not None else "forward_axis"
+        raise GainError("a shipped robot's platform is known: remove it", name)
     if forms[0] == "name" and any(drive):
         name = DRIVE_KEYS[drive.index(True)]
         raise GainError("a shipped robot's drive is known: remove the drive keys", name)
@@ -256,7 +265,7 @@ def _build(spec: RobotTable, camera: CameraIntrinsics | None) -> MobileManipulat
     if spec.form == "urdf":
         return MobileManipulator.from_urdf(
             spec.urdf, spec.camera_frame, drive_of(spec), camera, spec.repair_inertia,
-            spec.geometry_density,
+            spec.geometry_density, PlatformFrame(spec.base_joints, spec.forward_axis),
         )  # fmt: skip
     return MobileManipulator.assemble(
         spec.base,
@@ -270,6 +279,7 @@ def _build(spec: RobotTable, camera: CameraIntrinsics | None) -> MobileManipulat
         geometry_density=spec.geometry_density,
         arm_root=spec.arm_root or None,
         arm_tip=spec.arm_tip or None,
+        platform_frame=PlatformFrame(spec.base_joints, spec.forward_axis),
     )
 
 
@@ -280,6 +290,8 @@ def _field_at_fault(spec: RobotTable, err: PbvsError) -> str:
         return "name"
     if isinstance(err, DriveAxleNotFound):
         return "urdf" if form == "urdf" else "base"
+    if isinstance(err, BaseJointsError):
+        return "base_joints"
     chain = {getattr(spec, key): key for key in CHAIN_KEYS if getattr(spec, key)}
     if isinstance(err, FrameNotFound) and err.name in chain:
         return chain[err.name]

@@ -19,6 +19,7 @@ from pbvs_pin.control.kinematic import FEEDBACK_LAWS, ServoGains
 from pbvs_pin.control.upright import LOOP_GAIN_MARGIN, RESTORING_RATE
 from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.platform_frame import FORWARD_AXES
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.robot_spec import build_robot_from, check_forms, forms_given, is_path
 from pbvs_pin.sim.keys import (
@@ -85,6 +86,15 @@ class RobotSection(Section):
     yaw_rate_limit: float | None = key(
         None, "Omnidirectional drive: largest omega [rad/s]; 1.0 if absent.", sign=POSITIVE,
         optional=float,
+    )  # fmt: skip
+    base_joints: tuple[str, ...] | None = key(
+        None, "Joints of the urdf (or base) that model the base's motion (x, y and yaw "
+        "joints, a planar or a floating joint), fixed at zero so that the drive moves the "
+        "platform; recognised automatically if absent; [] for none.", names=True,
+    )  # fmt: skip
+    forward_axis: str = key(
+        "x", "The axis of the platform URDF's root link the platform drives along.",
+        choices=tuple(FORWARD_AXES),
     )  # fmt: skip
     arm_root: str = key("", "First link of the arm URDF mounted (at mount); its root if absent.")
     arm_tip: str = key(
