@@ -42,7 +42,8 @@ DRIVE_ADVICE = (
     "and wheel_speed_limit [rad/s]: add them to the URDF (wheel joints with <limit "
     "velocity=...>, wheel links with cylinder or sphere geometry), or give them explicitly "
     "with base=DifferentialDrive(wheel_radius=..., track=..., max_wheel_speed=...), whose "
-    "planar joint then sits at the platform's root link"
+    "planar joint then sits at the platform's root link; a holonomic base needs none: "
+    'pass the base kind "omnidirectional"'
 )
 """What every DriveAxleNotFound message ends with: the drive parameters and where they go."""
 
@@ -94,13 +95,44 @@ class UrdfSource:
             raise FrameNotFound(name, self.link_names(), self.label)
 
 
+def example_robot_data_alias(name: str) -> str | None:
+    """The example-robot-data name whose robot ``name`` really loads, if another's; else None.
+
+    example-robot-data's loader table maps some names to another robot's loader (``"ur3"`` to
+    the UR5's): ``name`` shares its loader with a name its URDF file is named after
+    (``ur5_robot.urdf``).
+    """
+    from example_robot_data.robots_loader import ROBOTS
+
+    loader = ROBOTS.get(name)
+    stem = Path(loader.urdf_filename or "").stem if loader is not None else ""
+    owners = [n for n, other in ROBOTS.items() if other is loader and stem.startswith(n)]
+    return None if not owners or stem.startswith(name) else owners[0]
+
+
 def _example_robot_data(name: str) -> tuple[Path, tuple[str, ...]] | None:
-    """URDF path and package folders of an example-robot-data robot, or None if unknown."""
+    """URDF path and package folders of an example-robot-data robot, or None if unknown.
+
+    Raises:
+        UrdfError: If example-robot-data maps ``name`` to another robot
+            (:func:`example_robot_data_alias`), saying which and what to write instead.
+    """
     from example_robot_data.robots_loader import ROBOTS
 
     if name not in ROBOTS:
         return None
     loader = ROBOTS[name]()
+    alias = example_robot_data_alias(name)
+    if alias is not None:
+        alternatives = [n for n in ROBOTS if n != name and n.startswith(name)]
+        raise UrdfError(
+            name,
+            f"example-robot-data maps {name!r} to the {alias!r} robot "
+            f"({Path(loader.df_path).name}), not to a robot of its own name: write "
+            f"{alias!r} for that robot"
+            + (f", or one of {', '.join(map(repr, alternatives))}" if alternatives else "")
+            + " (or a path to the .urdf file you mean)",
+        )
     robots_dir = Path(loader.model_path)
     return Path(loader.df_path), (str(robots_dir), str(robots_dir.parents[1]))
 
@@ -148,7 +180,8 @@ def _resolve(source: str | Path) -> tuple[Path, tuple[str, ...]]:
 
         from pbvs_pin.shipped import SHIPPED_URDFS
 
-        raise RobotNotFound(str(source), SHIPPED_URDFS, ROBOTS)
+        truthful = [name for name in ROBOTS if example_robot_data_alias(name) is None]
+        raise RobotNotFound(str(source), SHIPPED_URDFS, truthful)
     return erd
 
 

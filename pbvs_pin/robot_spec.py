@@ -93,6 +93,13 @@ DRIVE_KEYS = ("wheel_radius", "track", "wheel_speed_limit")
 OMNIDIRECTIONAL_KEYS = ("speed_limit", "yaw_rate_limit")
 """The limits of an omnidirectional drive (``drive = "omnidirectional"`` only)."""
 
+DRIVE_WAYS_OUT = (
+    "; or give the drive in [robot]: add wheel_radius, track and wheel_speed_limit (a drive "
+    "axle for the Pinocchio plant only: the MuJoCo plant rolls the URDF's own wheels), or "
+    'set drive = "omnidirectional" for a holonomic base (mecanum, omni or swerve wheels)'
+)
+"""What the error of a platform without a drive axle adds: every way out of a ``[robot]``."""
+
 DEFAULT_OMNIDIRECTIONAL_LIMIT = 1.0
 """An omnidirectional drive's speed [m/s] and yaw-rate [rad/s] limit when not given."""
 
@@ -235,7 +242,7 @@ def build_robot_from(
         field = _field_at_fault(spec, err)
         problem = str(err)
         if isinstance(err, DriveAxleNotFound):
-            problem += "; or give the drive: add wheel_radius, track and wheel_speed_limit"
+            problem += DRIVE_WAYS_OUT
         raise ScenarioError(spec.source, f"robot.{field}", problem) from err
     if spec.home is not None:
         robot.home_arm = arm_posture(spec.source, "robot.home", robot, spec.home)
