@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import DATA_DIR, REPO_ROOT
+from conftest import DATA_DIR
 
 from pbvs_pin import MobileManipulator
 from pbvs_pin.catalogue import OPTICAL_FROM_BODY, PIONEER_MOUNT
@@ -103,28 +103,19 @@ def test_the_most_manipulable_posture_stays_nearest_home_the_short_way(hobby):
     )
 
 
-def _scenario(tmp_path, duration: float):
+def _scenario(duration: float):
     """Experiment 1 on the hobby arm, home 0.01 rad short of pi, starting 0.01 rad past it."""
-    table = f"""
-[robot]
-base = "pioneer3at"
-arm = "{ARM}"
-mount = {list(PIONEER_MOUNT)}
-camera_link = "tool_link"
-camera_pose = {list(OPTICAL_FROM_BODY)}
-home = [{NEAR_PI!r}, 0.5, -0.5]
-initial_arm = [{ACROSS!r}, 0.5, -0.5]
-"""
-    text = (REPO_ROOT / "pbvs_pin" / "scenarios" / "experiment1.toml").read_text()
-    path = tmp_path / "hobby.toml"
-    path.write_text(text.replace('[robot]\nname = "pioneer_cyton"\n', table))
-    return load_scenario(path).with_values(duration=duration)
+    robot = {"name": "", "base": "pioneer3at", "arm": str(ARM), "mount": list(PIONEER_MOUNT),
+             "camera_link": "tool_link", "camera_pose": list(OPTICAL_FROM_BODY),
+             "home": [NEAR_PI, 0.5, -0.5], "initial_arm": [ACROSS, 0.5, -0.5]}  # fmt: skip
+    values = {f"robot.{key}": value for key, value in robot.items()}
+    return load_scenario("experiment1").with_values(duration=duration, **values)
 
 
-def test_a_run_across_the_wrap_reads_the_offset_not_a_turn(tmp_path):
+def test_a_run_across_the_wrap_reads_the_offset_not_a_turn():
     """The compiled step pulls the pan the 0.02 rad back to pi, and the summary reads the
     posture error the short way round (the reference wraps with complex exponentials)."""
-    log = simulate(_scenario(tmp_path, 1.0))
+    log = simulate(_scenario(1.0))
     posture = np.array(log.meta["posture_target"])
     error = np.abs(np.angle(np.exp(1j * (log["arm"] - posture))))
     assert error[0, 0] == pytest.approx(OFFSET, abs=1e-6)
