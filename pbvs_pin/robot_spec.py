@@ -158,8 +158,9 @@ def check_forms(spec: RobotTable) -> None:
     for name, needed in REQUIRED[forms[0]]:
         if not given(spec, name) and all(given(spec, n) for n in needed):
             raise GainError(f"missing; add {name} = {HINTS[name]}", name)
-    for name in (name for name in CHAIN_KEYS if given(spec, name) and forms[0] == "name"):
-        raise GainError("a shipped robot's arm is known: remove it", name)
+    chain = [name for name in CHAIN_KEYS if given(spec, name)]
+    if forms[0] == "name" and chain:
+        raise GainError("a shipped robot's arm is known: remove it", chain[0])
     drive = [given(spec, name) for name in DRIVE_KEYS]
     if forms[0] == "name" and spec.repair_inertia:
         raise GainError("a shipped robot's inertias are valid: remove it", "repair_inertia")
