@@ -328,7 +328,8 @@ class MobileManipulator:
         :meth:`from_urdf` on the written file, with this robot's ``camera_frame`` and base,
         gives the same model: the differential drive is found again from the wheel joints,
         which the file keeps. Mesh paths are absolute. An explicit base adapter object is not
-        written; pass it to :meth:`from_urdf` again.
+        written, nor are the joints locked off an ``arm_root``/``arm_tip`` chain of a URDF
+        carrying its arm; pass them to :meth:`from_urdf` again.
 
         Args:
             path: File to write (``.urdf``).
