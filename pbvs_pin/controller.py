@@ -68,7 +68,8 @@ from pbvs_pin.control.tracking import TargetTracker
 from pbvs_pin.control.upright import upright_row
 from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
 from pbvs_pin.features import ImageMeasurement, TwoSphereFeatures
-from pbvs_pin.robot import UNIT_TOLERANCE, MobileManipulator, arm_angles
+from pbvs_pin.joint_angles import arm_angles
+from pbvs_pin.robot import UNIT_TOLERANCE, MobileManipulator
 from pbvs_pin.validation import as_array
 
 JUMP_SLACK = (0.05, 0.1)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import tomllib
 from collections.abc import Callable
 from contextlib import nullcontext
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -142,17 +143,19 @@ def with_robot(scenario: Scenario, robot: str) -> Scenario:
     """``scenario`` on another robot: a shipped name, a URDF file, or a robot file.
 
     A robot file is a TOML file with a ``[robot]`` table (its relative paths are read against
-    its folder); a URDF file needs a ``camera_optical_frame``.
+    its folder, and the robot's errors and warnings name it); a URDF file needs a
+    ``camera_optical_frame``.
 
     Raises:
         RobotNotFound: If ``robot`` is neither a file nor a shipped name.
         ScenarioError: If the robot file has no ``[robot]`` table or the table is invalid.
     """
+    own = None  # a robot file's table, which names that file
     if Path(robot).suffix.lower() == ".toml":
-        source = load_scenario(robot)  # names the file and field of any bad value
+        own = load_scenario(robot).robot  # names the file and field of any bad value
         if "robot" not in tomllib.loads(Path(robot).read_text(encoding="utf-8")):
             raise ScenarioError(robot, "robot", "no [robot] table (expected a robot file)")
-        table = source.to_toml()["robot"]
+        table = own.to_toml()
     elif Path(robot).suffix.lower() == ".urdf" or Path(robot).is_file():
         table = {"urdf": str(Path(robot).resolve()), "camera_frame": "camera_optical_frame"}
     elif robot in ROBOT_NAMES:
@@ -161,7 +164,8 @@ def with_robot(scenario: Scenario, robot: str) -> Scenario:
         raise RobotNotFound(robot, ROBOT_NAMES)
     raw = scenario.to_toml()
     raw["robot"] = table
-    return parse_scenario(raw, scenario.source)
+    changed = parse_scenario(raw, scenario.source)
+    return changed if own is None else replace(changed, robot=own)
 
 
 def robot_label(robot: str) -> str:

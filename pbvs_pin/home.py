@@ -57,6 +57,7 @@ import pinocchio as pin
 from scipy.optimize import least_squares, minimize
 
 from pbvs_pin.exceptions import GainError, HomeNotFound
+from pbvs_pin.joint_angles import arm_difference
 from pbvs_pin.manipulability import arm_manipulability
 from pbvs_pin.validation import as_count, convert_fields
 
@@ -93,8 +94,9 @@ class HomeCriteria:
         max_ahead: Largest distance of the camera in front of the platform origin [m]; with
             ``max_height`` it keeps the arm from stretching far out.
         max_lateral: Largest distance of the camera from the platform's centreline [m].
-        limit_margin: Fraction of each joint's range kept from both of its limits; joints
-            without limits (continuous) search ``[-pi, pi]``.
+        limit_margin: Fraction of each joint's range kept from both of its limits. A joint
+            without limits (continuous) is searched without bounds, from starts in
+            ``[-pi, pi]``, and its home is given in ``[-pi, pi)``.
         posture_weight: Weight ``c`` of the distance from the middle of the joint ranges in
             step 2's cost, against ``-log`` of the manipulability.
         max_forward_error: Largest angle [rad] between the optical axis and the platform's x
@@ -168,7 +170,11 @@ class HomeAssessment:
 
 
 def _limits(robot: MobileManipulator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Arm joint limits and which joints have them (continuous joints: ``[-pi, pi]``)."""
+    """Arm joint limits and which joints have them (continuous joints: ``[-pi, pi]``).
+
+    A continuous joint's ``[-pi, pi]`` is the box of the starting postures and of the posture
+    weight, not a bound.
+    """
     lower, upper = robot.arm_position_limits()
     limited = np.isfinite(lower) & np.isfinite(upper)
     return np.where(limited, lower, -np.pi), np.where(limited, upper, np.pi), limited
@@ -281,6 +287,7 @@ def _stage_two(
     criteria: HomeCriteria,
     start: np.ndarray,
     bounds: tuple[np.ndarray, np.ndarray],
+    box: tuple[np.ndarray, np.ndarray],
     reached: HomeAssessment,
 ) -> tuple[np.ndarray, float]:
     """Step 2 from a step-1 posture: best-conditioned posture keeping what step 1 reached.
@@ -289,7 +296,10 @@ def _stage_two(
         kinematics: The robot's cached kinematics.
         criteria: The criteria.
         start: A step-1 posture. Shape (n_arm,).
-        bounds: Lower and upper bounds of the arm joints. Shapes (n_arm,).
+        bounds: Lower and upper bounds of the arm joints (infinite for a continuous joint).
+            Shapes (n_arm,).
+        box: ``bounds`` with ``[-pi, pi]`` for a continuous joint: its middle and span
+            scale the posture weight. Shapes (n_arm,).
         reached: Assessment of the best step-1 posture: its orientation error and band
             violation (plus ``_KEEP``) bound those of the result.
 
@@ -299,7 +309,7 @@ def _stage_two(
     robot = kinematics.robot
     a, b, lateral = _band(criteria, reached.band_violation(criteria) + _KEEP)
     angle_limit = reached.orientation_error + _ANGLE_SLACK
-    middle, span = 0.5 * (bounds[0] + bounds[1]), bounds[1] - bounds[0]
+    middle, span = 0.5 * (box[0] + box[1]), box[1] - box[0]
 
     def orientation(arm: np.ndarray) -> np.ndarray:
         error = pin.log3(CAMERA_FORWARD.T @ kinematics.at(arm)[0])
@@ -363,8 +373,8 @@ def compute_home(
         seed: Seed of the random starting postures.
 
     Returns:
-        ``theta_h`` [rad or m], at least ``limit_margin`` of its range from each limit.
-        Shape (n_arm,).
+        ``theta_h`` [rad or m], at least ``limit_margin`` of its range from each limit; a
+        continuous joint's in ``[-pi, pi)``. Shape (n_arm,).
 
     Raises:
         HomeNotFound: If no posture brings the optical axis within
@@ -375,11 +385,13 @@ def compute_home(
     refine = as_count("refine", refine, minimum=1)
     lower, upper, limited = _limits(robot)
     margin = np.where(limited, criteria.limit_margin * (upper - lower), 0.0)
-    bounds = (lower + margin, upper - margin)
+    box = (lower + margin, upper - margin)
+    # a continuous joint is unbounded: a bound at +-pi would stop the search at the wrap
+    bounds = (np.where(limited, box[0], -np.inf), np.where(limited, box[1], np.inf))
     kinematics = _Kinematics(robot)
     rng = np.random.default_rng(seed)
-    guesses = [np.clip(np.zeros(robot.n_arm), *bounds), 0.5 * (bounds[0] + bounds[1])]
-    guesses += [rng.uniform(*bounds) for _ in range(starts)]
+    guesses = [np.clip(np.zeros(robot.n_arm), *box), 0.5 * (box[0] + box[1])]
+    guesses += [rng.uniform(*box) for _ in range(starts)]
     candidates = [_stage_one(kinematics, criteria, g, bounds) for g in guesses]
     assessed = [assess_home(robot, arm) for arm in candidates]
     ranks = sorted(
@@ -398,7 +410,9 @@ def compute_home(
         and assessed[i].band_violation(criteria) <= best.band_violation(criteria) + _KEEP
     ]
     refined = [
-        _stage_two(kinematics, criteria, candidates[i], bounds, best) for i in feasible[:refine]
+        _stage_two(kinematics, criteria, candidates[i], bounds, box, best)
+        for i in feasible[:refine]
     ]
     arm, value = min(refined, key=lambda pair: pair[1])
-    return np.asarray(arm if np.isfinite(value) else candidates[ranks[0]], dtype=float)
+    arm = np.asarray(arm if np.isfinite(value) else candidates[ranks[0]], dtype=float)
+    return arm_difference(arm, np.zeros(robot.n_arm), robot.arm_continuous)

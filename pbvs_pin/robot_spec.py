@@ -10,9 +10,11 @@ file of its own) gives exactly one form:
   platform (:meth:`MobileManipulator.assemble`); ``arm`` and ``mount`` are absent when the
   base carries its arm.
 
-``arm_root`` and ``arm_tip`` (assembly form with an arm) mount only the arm URDF's chain
-between the two links. ``repair_inertia`` (URDF and assembly forms) repairs inertias that
-break the triangle inequality (:func:`pbvs_pin.urdf_checks.balance_inertia`).
+``arm_root`` and ``arm_tip`` (URDF and assembly forms) make the arm the chain between the two
+links: with ``arm``, only that chain of the arm's URDF is mounted; without (a URDF or base that
+carries its arm), every movable joint off the chain is locked at neutral. ``repair_inertia``
+(URDF and assembly forms) repairs inertias that break the triangle inequality
+(:func:`pbvs_pin.urdf_checks.balance_inertia`).
 ``home`` (the arm's home posture) applies to every form. The drive parameters
 ``wheel_radius``, ``track`` and ``wheel_speed_limit`` (all three or none, URDF and assembly
 forms) replace the drive axle found in the platform's URDF by a
@@ -99,11 +101,18 @@ DRIVE_KEYS = ("wheel_radius", "track", "wheel_speed_limit")
 OMNIDIRECTIONAL_KEYS = ("speed_limit", "yaw_rate_limit")
 """The limits of an omnidirectional drive (``drive = "omnidirectional"`` only)."""
 
+DRIVE_WAYS_OUT = (
+    "; or give the drive in [robot]: add wheel_radius, track and wheel_speed_limit (a drive "
+    "axle for the Pinocchio plant only: the MuJoCo plant rolls the URDF's own wheels), or "
+    'set drive = "omnidirectional" for a holonomic base (mecanum, omni or swerve wheels)'
+)
+"""What the error of a platform without a drive axle adds: every way out of a ``[robot]``."""
+
 DEFAULT_OMNIDIRECTIONAL_LIMIT = 1.0
 """An omnidirectional drive's speed [m/s] and yaw-rate [rad/s] limit when not given."""
 
 CHAIN_KEYS = ("arm_root", "arm_tip")
-"""The keys that cut a chain out of the arm's URDF (assembly form with an arm only)."""
+"""The keys that make the arm a chain of a URDF (URDF and assembly forms)."""
 
 REQUIRED: dict[str, tuple[tuple[str, tuple[str, ...]], ...]] = {
     "name": (),
@@ -155,9 +164,9 @@ def check_forms(spec: RobotTable) -> None:
     for name, needed in REQUIRED[forms[0]]:
         if not given(spec, name) and all(given(spec, n) for n in needed):
             raise GainError(f"missing; add {name} = {HINTS[name]}", name)
-    for name in CHAIN_KEYS:
-        if given(spec, name) and not given(spec, "arm"):
-            raise GainError("needs an arm: the chain is cut out of the arm's URDF", name)
+    chain = [name for name in CHAIN_KEYS if given(spec, name)]
+    if forms[0] == "name" and chain:
+        raise GainError("a shipped robot's arm is known: remove it", chain[0])
     drive = [given(spec, name) for name in DRIVE_KEYS]
     if forms[0] == "name" and spec.repair_inertia:
         raise GainError("a shipped robot's inertias are valid: remove it", "repair_inertia")
@@ -244,7 +253,7 @@ def build_robot_from(
         field = _field_at_fault(spec, err)
         problem = str(err)
         if isinstance(err, DriveAxleNotFound):
-            problem += "; or give the drive: add wheel_radius, track and wheel_speed_limit"
+            problem += DRIVE_WAYS_OUT
         raise ScenarioError(spec.source, f"robot.{field}", problem) from err
     if spec.home is not None:
         robot.home_arm = arm_posture(spec.source, "robot.home", robot, spec.home)
@@ -266,6 +275,7 @@ def _build(spec: RobotTable, camera: CameraIntrinsics | None) -> MobileManipulat
         return MobileManipulator.from_urdf(
             spec.urdf, spec.camera_frame, drive_of(spec), camera, spec.repair_inertia,
             spec.geometry_density, PlatformFrame(spec.base_joints, spec.forward_axis),
+            spec.arm_root or None, spec.arm_tip or None,
         )  # fmt: skip
     return MobileManipulator.assemble(
         spec.base,

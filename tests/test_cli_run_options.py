@@ -169,6 +169,8 @@ def test_list_offers_no_hand_and_no_pendulum(capsys):
     for other in ("allegro_left_hand", "double_pendulum", "asr_twodof", "alex_nub_hands",
                   "baxter", "tiago"):  # fmt: skip
         assert f"  {other}\n" not in arms
+    # example-robot-data's "ur3" loads the UR5 (its UR5Loader); the UR3's own names stay
+    assert "  ur3\n" not in arms and "  ur3_limited\n" in arms
 
 
 # ---------------------------------------------------------------- Ctrl-C

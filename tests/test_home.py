@@ -108,7 +108,10 @@ def test_home_of_a_robot_the_project_does_not_ship():
     home = compute_home(robot)
     _check_home(robot, home)
     assessment = assess_home(robot, home)
-    assert assessment.band_violation(HomeCriteria()) == 0.0
+    # step 2 keeps the band within _KEEP (1e-5 m) of step 1's, which reaches it exactly; its
+    # three continuous joints are searched unbounded (2.6x the manipulability of a search
+    # bounded at +-pi, 0.0111 against 0.0042), and the result is 2e-7 m off the band
+    assert assessment.band_violation(HomeCriteria()) <= 1e-6
 
 
 def test_narrower_band_is_respected(load):

@@ -15,8 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pbvs_pin.catalogue import RECIPES
 from pbvs_pin.cli import main
-from pbvs_pin.exceptions import OutputError
+from pbvs_pin.exceptions import OutputError, PbvsWarning
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.sections import RobotSection
@@ -25,6 +26,7 @@ from pbvs_pin.zoo import (
     PAGE_END,
     errors,
     load_zoo,
+    run_robot,
     run_zoo,
     write_block,
     zoo_table,
@@ -191,3 +193,17 @@ def test_a_robot_that_tips_over_on_mujoco_is_listed_with_its_warning(tmp_path):
     assert "tips over on the MuJoCo plant" in rows[0]["warning"]
     assert errors(rows, "warning").startswith("- ``pioneer_panda`` on mujoco (experiment1): ")
     assert errors(rows) == ""
+
+
+def test_a_robot_files_warnings_name_the_file(tmp_path):
+    """The UR5 mounted on the floor: the placement warning names its robot file."""
+    folder = tmp_path / "robots"
+    folder.mkdir()
+    low = BROKEN.replace('"no_such_link"', '"tool0"').replace("0.27", "0.0")
+    (folder / "low_ur5.toml").write_text(low + f"home = {list(RECIPES['pioneer_ur5'].home)}\n")
+    robot = load_zoo(folder)[0]  # run in this process (run_zoo's pool keeps its warnings)
+    with pytest.warns(PbvsWarning) as caught:
+        rows = run_robot(robot, tmp_path / "out", ("experiment1",), ("pinocchio",), 0.1)
+    assert errors(rows) == ""
+    placement = [str(w.message) for w in caught if "at home" in str(w.message)]
+    assert placement[0].startswith(f"{folder / 'low_ur5.toml'}: at home, arm links inside")

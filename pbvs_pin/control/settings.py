@@ -235,7 +235,7 @@ def secondary_objectives(
             )
         )
     if spec.posture:
-        objectives.append(ArmPosture(target, spec.k_lambda))
+        objectives.append(ArmPosture(target, spec.k_lambda, model.arm_continuous))
     if spec.joint_limits:
         lower, upper = model.arm_position_limits()
         objectives.append(JointLimitAvoidance(lower, upper))

@@ -53,8 +53,8 @@ from pbvs_pin.control.secondary import (
 from pbvs_pin.control.tracking import predict_points
 from pbvs_pin.control.upright import Safety, upright_row
 from pbvs_pin.features import ImageMeasurement, feature_jacobians
+from pbvs_pin.joint_angles import arm_angles
 from pbvs_pin.linalg import matmul
-from pbvs_pin.robot import arm_angles
 
 LOCAL = pin.LOCAL
 NAN = float("nan")
@@ -120,7 +120,9 @@ def fused_control_step(
     theta = arm_angles(q, index.arm_q_indices, index.arm_continuous)
     secondary = np.zeros(n)
     if setting.posture:
-        secondary[n_base:] += posture_term(theta, p.posture_target, setting.posture_gain)
+        secondary[n_base:] += posture_term(
+            theta, p.posture_target, setting.posture_gain, index.arm_continuous
+        )
     if setting.joint_limits:
         secondary[n_base:] += joint_limit_term(
             theta, p.lower, p.upper, setting.limit_margin, setting.limit_gain

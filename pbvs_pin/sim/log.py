@@ -375,6 +375,7 @@ class RunRecorder:
                 [None if not np.isfinite(x) else float(x) for x in side]
                 for side in setup.robot.arm_position_limits()
             ],
+            "arm_continuous": setup.robot.arm_continuous.tolist(),
             "compensation": scenario.compensation.mode,
             "duration": float(scenario.duration),
             "interrupted": interrupted,

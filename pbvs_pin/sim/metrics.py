@@ -5,7 +5,7 @@ them (:func:`summarize`):
 
 - **target lost**: samples with ``target_lost`` set, and the first such time;
 - **joints past limits**: the largest excursion of an arm joint beyond its position limits
-  (``meta["arm_position_limits"]``) [rad or m], 0 when none;
+  (``meta["arm_position_limits"]``) [rad or m], 0 when none (a continuous joint has none);
 - **collision**: the smallest platform clearance < 0;
 - **sustained oscillation**: the part of the true feature error above
   :data:`OSCILLATION_CUTOFF_HZ`, RMS over the worst :data:`FINAL_WINDOW`-long window after
@@ -80,7 +80,9 @@ def summarize(log: RunLog) -> dict[str, Any]:
         "rms_error_after_transient_px": _rms(np.linalg.norm(error[after], axis=1)),
         "final_abs_error_px": np.abs(error[-1]).round(3).tolist(),
         "min_clearance_m": _min(log["clearance"]),
-        "posture_error_final_window_rad": _max(log["arm"][final] - posture),
+        "posture_error_final_window_rad": _max(
+            posture_error(log["arm"][final], posture, log.meta.get("arm_continuous"))
+        ),
         "storage_increase_after_transient": float(np.sum(np.maximum(increases, 0.0))),
         "storage_decrease_after_transient": float(-np.sum(np.minimum(increases, 0.0))),
         "velocity_tracking_rms": _rms(np.linalg.norm(tracking, axis=1)),
@@ -183,6 +185,30 @@ def oscillation_rms(t: np.ndarray, error: np.ndarray) -> tuple[float, float | No
     power = np.convolve(np.sum(high**2, axis=1), np.ones(width) / width, mode="valid")
     worst = int(np.argmax(power))
     return float(np.sqrt(power[worst])), float(times[worst])
+
+
+def posture_error(
+    arm: np.ndarray, posture: np.ndarray, continuous: list[bool] | None
+) -> np.ndarray:
+    """The arm's distance from ``posture`` per sample and joint [rad or m].
+
+    A continuous joint's is the shortest way round, in ``[-pi, pi)``
+    (:func:`pbvs_pin.joint_angles.arm_difference`): an angle and the same angle plus ``2 pi`` are
+    one posture.
+
+    Args:
+        arm: Arm positions. Shape (T, n_arm).
+        posture: The posture target. Shape (n_arm,).
+        continuous: Whether each joint is continuous (``meta["arm_continuous"]``); None
+            (a log written before it was recorded): none is.
+
+    Returns:
+        Shape (T, n_arm).
+    """
+    error = np.asarray(arm, dtype=float) - posture
+    wrapped = np.zeros(error.shape[1], dtype=bool) if continuous is None else np.array(continuous)
+    error[:, wrapped] = np.mod(error[:, wrapped] + np.pi, 2.0 * np.pi) - np.pi
+    return error
 
 
 def joint_limit_violation(log: RunLog) -> float | None:

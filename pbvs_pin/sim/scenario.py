@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import tomllib
 from collections.abc import Mapping
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -117,6 +117,9 @@ class Scenario(Section):
     def with_values(self, **changes: Any) -> Scenario:
         """Copy with dotted fields replaced, e.g. ``with_values(**{"robot.name": "tiago"})``.
 
+        A ``[robot]`` read from a robot file of its own (``run --robot FILE``) keeps naming
+        that file in its messages unless a ``robot.`` key changes.
+
         Raises:
             ScenarioError: If a field is unknown or its value is invalid.
         """
@@ -127,7 +130,10 @@ class Scenario(Section):
             if not isinstance(table, dict) or section == "obstacles":
                 raise self.error(section, f"unknown section; expected one of {_sections()}")
             table[name] = value
-        return parse_scenario(raw, self.source)
+        changed = parse_scenario(raw, self.source)
+        if self.robot.source == self.source or any(d.startswith("robot.") for d in changes):
+            return changed
+        return replace(changed, robot=self.robot)
 
 
 SCHEMA: dict[str, dict[str, Any]] = {

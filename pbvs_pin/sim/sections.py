@@ -96,10 +96,15 @@ class RobotSection(Section):
         "x", "The axis of the platform URDF's root link the platform drives along.",
         choices=tuple(FORWARD_AXES),
     )  # fmt: skip
-    arm_root: str = key("", "First link of the arm URDF mounted (at mount); its root if absent.")
+    arm_root: str = key(
+        "", "First link of the arm: of the arm URDF mounted (at mount), or of the urdf or base "
+        "that carries its arm; the URDF's root if absent.",
+    )  # fmt: skip
     arm_tip: str = key(
-        "", "Last link of the arm URDF mounted; with arm_root or alone, only the chain between "
-        "them is kept (camera_link if absent); the whole arm URDF if both are absent.",
+        "", "Last link of the arm (camera_link or camera_frame if absent); with arm_root or "
+        "alone, the arm is the chain between them: only it is mounted of an arm URDF, and "
+        "a URDF carrying its arm has every movable joint off it locked. Both absent: the "
+        "whole arm URDF; every joint moving the camera.",
     )  # fmt: skip
     repair_inertia: bool = key(
         False, "Replace inertias breaking I1 + I2 >= I3 by their mean principal moment "

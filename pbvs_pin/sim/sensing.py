@@ -51,8 +51,8 @@ import numpy as np
 from numba import njit
 
 from pbvs_pin.base import DifferentialDrive, unicycle_twist
+from pbvs_pin.joint_angles import arm_angles
 from pbvs_pin.odometry import WheelOdometry, odometry_update, read_counts
-from pbvs_pin.robot import arm_angles
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
