@@ -75,7 +75,7 @@ from pbvs_pin.control.upright import upright_row
 from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
 from pbvs_pin.features import ImageMeasurement, TwoSphereFeatures
 from pbvs_pin.robot import UNIT_TOLERANCE, MobileManipulator, arm_angles
-from pbvs_pin.validation import as_array, as_number
+from pbvs_pin.validation import as_array, as_number, as_numbers
 
 JUMP_SLACK = (0.05, 0.1)
 """Platform motion in one step [m, rad] beyond the velocity limits' reach that counts as an
@@ -338,7 +338,7 @@ class Controller:
         bounds.check_configuration_bounds(q)
         bounds.check_velocity_bounds(v, self._v_bound)
         if laser is not None:
-            laser = np.array(laser, dtype=float)
+            laser = as_numbers("laser", laser).copy()  # WrongType for text
             if laser.shape != (2,):
                 raise ShapeError("laser", (2,), laser.shape)
             if math.isnan(laser[0]) or not math.isfinite(laser[1]):

@@ -84,7 +84,7 @@ def check_target_speed(velocity: np.ndarray) -> None:
     Raises:
         ControlInputError: Naming the speed.
     """
-    speed = math.sqrt(float(velocity @ velocity))
+    speed = math.hypot(*velocity.tolist())  # no overflow
     if speed > MAX_TARGET_SPEED:
         raise ControlInputError(
             f"target_velocity: speed {speed:g} m/s, expected at most {MAX_TARGET_SPEED:g} m/s"

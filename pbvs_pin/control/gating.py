@@ -8,24 +8,29 @@ apparent diameter ``f D / z`` of a sphere of the target's diameter ``D`` at the 
 ``z`` (the depths are measured through that diameter, with the same pixel noise). The test is
 a chi-square gate on the innovation normalised by its expected spread:
 
-.. math:: \epsilon = \frac{1}{\sigma^2} \sum_i \Big(|\xi_i - \hat\xi_i|^2
-          + f^2 D^2 \big(\tfrac{1}{z_i} - \tfrac{1}{\hat z_i}\big)^2\Big),
+.. math:: \epsilon = \sum_i \Big(\frac{|\xi_i - \hat\xi_i|^2}{\sigma^2}
+          + \frac{f^2 D^2}{\sigma_d^2} \big(\tfrac{1}{z_i} - \tfrac{1}{\hat z_i}\big)^2\Big),
           \qquad \epsilon > \chi^2_{3k}(1 - P_{FA}) \;\Rightarrow\; \text{rejected}
 
-with :math:`\sigma^2 = 2 \sigma_n^2 + \sigma_p^2`: the pixel noise of the new frame and of the
+with :math:`\sigma^2 = 2 \sigma_n^2 + \sigma_p^2` and
+:math:`\sigma_d^2 = 2 \sigma_n^2 + \sigma_{pd}^2`: the pixel noise of the new frame and of the
 frame the prediction started from (``sigma_n``: the camera's stated ``noise_px``, at least
 :data:`NOISE_FLOOR_PX`), and the prediction's own uncertainty over the age ``tau`` of the
-accepted frame at the new capture,
+accepted frame at the new capture, across the image and in the apparent diameter,
 
-.. math:: \sigma_p = \sigma_0 + \frac{f}{\bar z}\Big(\Delta v\,\tau + \tfrac12 a\,\tau^2\Big)
+.. math:: \sigma_p = \sigma_0 + \frac{f}{\bar z}\,\delta(\tau), \quad
+          \sigma_{pd} = \sigma_{0d} + \frac{f D}{\bar z^2}\,\delta(\tau), \quad
+          \delta(\tau) = \Delta v\,\tau + \tfrac12 a\,\tau^2
 
-(``sigma_0`` = :data:`PREDICTION_PX`: the model's kinematic error and the latency jitter;
-``Delta v`` = :data:`SPEED_UNCERTAINTY`: the velocity estimate's error; ``a`` =
-:data:`ACCELERATION`: the target's unmodelled acceleration; ``z_bar`` the predicted mean
-depth). ``P_FA`` = :data:`FALSE_ALARM`: with Gaussian noise within these spreads, one good
-frame in a million is rejected. The gate widens as the accepted frame ages: after an
+(``sigma_0`` = :data:`PREDICTION_PX` and ``sigma_0d`` = :data:`DIAMETER_PX`: the model's
+kinematic error and the latency jitter; ``Delta v`` = :data:`SPEED_UNCERTAINTY`: the velocity
+estimate's error; ``a`` = :data:`ACCELERATION`: the target's unmodelled acceleration;
+``delta`` the distance the target may stray from its prediction [m]; ``z_bar`` the predicted
+mean depth). ``P_FA`` = :data:`FALSE_ALARM`: with Gaussian noise within these spreads, one
+good frame in a million is rejected. The gate widens as the accepted frame ages: after an
 occlusion of a second it no longer rejects anything on the image. At 30 Hz, 0.5 m away and
-4 px of noise, a frame 165 px from its prediction is still accepted; one 10 000 px off is not.
+4 px of noise, one point 95 px from its prediction is still accepted (both points 70 px off,
+or both depths doubled, are not); at 0.5 px, 89 px.
 
 A rejected frame is not used (the tracker keeps what it had) and is counted. After
 :data:`RESTART_AFTER` rejections in a row, the target really moved where the frames say: the
@@ -44,10 +49,12 @@ NOISE_FLOOR_PX = 0.5
 """Smallest pixel noise the gate assumes [px] (a detector's sub-pixel accuracy), also for a
 camera stated noiseless."""
 PREDICTION_PX = 5.0
-"""``sigma_0``: the prediction's error with no time to grow [px]."""
-SPEED_UNCERTAINTY = 0.5
+"""``sigma_0``: the prediction's error across the image with no time to grow [px]."""
+DIAMETER_PX = 1.0
+"""``sigma_0d``: the prediction's error in the apparent diameter with no time to grow [px]."""
+SPEED_UNCERTAINTY = 0.2
 """``Delta v``: error of the velocity estimate the prediction assumes [m/s]."""
-ACCELERATION = 5.0
+ACCELERATION = 2.0
 """``a``: largest unmodelled target acceleration [m/s^2]."""
 FALSE_ALARM = 1e-6
 """``P_FA``: the chance that a good frame fails the gate under the stated spreads."""
@@ -109,14 +116,17 @@ class InnovationGate:
         self.counts = counts
         self.in_a_row = 0
 
-    def spread(self, age: float, depth: float) -> float:
-        """``sigma`` [px]: the innovation's spread ``age`` [s] on, at depth ``depth`` [m].
+    def spreads(self, age: float, depth: float) -> tuple[float, float]:
+        """``sigma`` and ``sigma_d`` [px]: the innovation's spreads ``age`` [s] on, at ``depth``.
 
         ``age`` is the time since the accepted frame the prediction starts from, ``depth`` the
-        predicted mean depth.
+        predicted mean depth [m].
         """
-        grown = self.focal / depth * (SPEED_UNCERTAINTY * age + 0.5 * ACCELERATION * age * age)
-        return math.sqrt(self.noise_variance + (PREDICTION_PX + grown) ** 2)
+        stray = SPEED_UNCERTAINTY * age + 0.5 * ACCELERATION * age * age  # delta [m]
+        across = PREDICTION_PX + self.focal / depth * stray
+        diameter = DIAMETER_PX + self.size / (depth * depth) * stray
+        noise = self.noise_variance
+        return math.sqrt(noise + across * across), math.sqrt(noise + diameter * diameter)
 
     def statistic(
         self,
@@ -137,8 +147,8 @@ class InnovationGate:
         """
         image = points - predicted_points
         size = self.size * (1.0 / depths - 1.0 / predicted_depths)
-        sigma = self.spread(age, float(predicted_depths.mean()))
-        return float((image * image).sum() + size @ size) / (sigma * sigma)
+        sigma, sigma_d = self.spreads(age, float(predicted_depths.mean()))
+        return float((image * image).sum()) / sigma**2 + float(size @ size) / sigma_d**2
 
     def verdict(self, statistic: float) -> tuple[bool, bool]:
         """Whether a frame of this statistic is used, and whether it restarts the estimate.
