@@ -8,7 +8,7 @@ reference robot and on TIAGo Pro's holonomic base. Each faulty step either raise
 project's error in one line or gives a finite command within the velocity limits; the normal
 steps after it never raise, give finite limited commands at once, and servo the error back
 below :data:`ERROR_BOUND`. ``PBVS_FUZZ_EXAMPLES`` multiplies the number of faults (1 in CI:
-2 200 faults of 47 kinds; e.g. 20 for a nightly run), ``PBVS_FUZZ_SEED`` replaces the fixed
+2 200 faults of 48 kinds; e.g. 20 for a nightly run), ``PBVS_FUZZ_SEED`` replaces the fixed
 seed.
 """
 
@@ -337,7 +337,9 @@ def test_the_gate_is_the_stated_chi_square_test(noise_px):
         loop.controller.step(0.0, loop.q, loop.v, loop.frame(0.0))
         shifted = loop.frame(age)
         depths = shifted.depths
-        frame = CameraFrame.seen(age, shifted.points + np.array([[displacement, 0.0], [0.0, 0.0]]), depths)
+        frame = CameraFrame.seen(
+            age, shifted.points + np.array([[displacement, 0.0], [0.0, 0.0]]), depths
+        )
         command = loop.controller.step(age, loop.q, loop.v, frame)
         assert (command.rejected == "") == passes, (displacement, radius, command.rejected)
 
