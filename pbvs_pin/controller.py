@@ -235,7 +235,7 @@ class Controller:
         self._t = -np.inf
         self._previous_root: tuple[float, float, float, float] | None = None
         limits = self.law.velocity_limits
-        self._v_bound = bounds.VELOCITY_BOUND * np.asarray(model.velocity_limits, dtype=float)
+        self._v_bound = tuple((bounds.VELOCITY_BOUND * np.asarray(limits)).tolist())
         self._jump_limits = (2 * limits[0], 2 * limits[model.n_base - 1])
         """Twice the platform's speed limits [m/s, rad/s]: beyond, the odometry jumped."""
         self._newest_capture = -np.inf

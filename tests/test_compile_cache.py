@@ -24,7 +24,8 @@ CLAMP = "v_ref[i] = min(max(value, -limits[i]), limits[i])"
 NOTICE = """
 import sys
 from pbvs_pin.compile_cache import announce_compiles, kernels_cached
-announce_compiles(stream=sys.stdout).__enter__()  # listens to the end of the script
+announcing = announce_compiles(stream=sys.stdout)  # kept: it listens to the end
+announcing.__enter__()
 """
 SIMULATE = """
 from pbvs_pin.sim.loop import simulate

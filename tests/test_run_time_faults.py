@@ -27,7 +27,7 @@ from conftest import project_world
 from scipy.stats import chi2
 
 import pbvs_pin
-from pbvs_pin import CameraFrame, Controller, ControllerSettings
+from pbvs_pin import CameraFrame, Controller
 from pbvs_pin.compile_cache import announce_compiles, cached_kernels
 from pbvs_pin.control.gating import RESTART_AFTER, FaultCounts, InnovationGate
 from pbvs_pin.control.step import fused_control_step
@@ -51,23 +51,22 @@ FRAME_EVERY = 3  # control steps per frame: 33 Hz
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 
 
-def _settings(noise_px: float = 0.5) -> ControllerSettings:
-    scenario = pbvs_pin.load_scenario("experiment1").with_values(**{"camera.noise_px": noise_px})
-    return ControllerSettings.from_scenario(scenario)
-
-
 def _controller(robot_name: str, noise_px: float = 0.5) -> Controller:
-    scenario = pbvs_pin.load_scenario("experiment1").with_values(**{"camera.noise_px": noise_px})
-    if robot_name != "pioneer_cyton":
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # placement warnings of the zoo's robot file
+    """Experiment 1's controller with obstacle avoidance (the laser's faults reach it)."""
+    scenario = pbvs_pin.load_scenario("experiment1").with_values(
+        **{"camera.noise_px": noise_px, "secondary.obstacle_avoidance": True}
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # placement warnings of the zoo's robot file
+        if robot_name != "pioneer_cyton":
             scenario = with_robot(scenario, str(ROBOTS / f"{robot_name}.toml"))
-            return Controller.from_scenario(scenario, announce=False)
-    return Controller(pbvs_pin.load_robot(robot_name), _settings(noise_px), announce=False)
+        return Controller.from_scenario(scenario, announce=False)
 
 
 class Loop:
-    """Exact velocity tracking, a still target and an ideal camera around a controller.
+    """Exact velocity tracking, a still target, an ideal camera and a laser around a controller.
+
+    The laser sees nothing (``inf``) and reads with every frame.
 
     The target's two centres are placed where the camera at home sees ``xi_d`` plus
     ``offset`` [px] (the pinhole of eq. 2 inverted, separation 0.1 m).
@@ -95,8 +94,9 @@ class Loop:
     def inputs(self) -> dict:
         """The next normal step's arguments."""
         t = self.t + PERIOD
-        frame = self.frame(t) if self.steps % FRAME_EVERY == 0 else None
-        return {"t": t, "q": self.q.copy(), "v": self.v.copy(), "frame": frame, "laser": None}
+        due = self.steps % FRAME_EVERY == 0
+        frame, laser = (self.frame(t), (math.inf, 0.0)) if due else (None, None)
+        return {"t": t, "q": self.q.copy(), "v": self.v.copy(), "frame": frame, "laser": laser}
 
     def apply(self, inputs: dict, command) -> None:
         """Advance the plant by one step of ``command`` (the step at ``inputs['t']`` ran)."""
@@ -257,6 +257,26 @@ def test_the_faults_are_counted(settled):
         if count != "clock_jitter":
             assert command.rejected, name
     assert loop.controller.counts.restarts == 0
+
+
+def test_an_impossible_laser_range_leaves_the_obstacle_impedance_at_rest(settled):
+    """A range of -1e308 m is dropped: the impedance of eq. (17) stays at rest (it was driven
+    to 4e304 by the reading before)."""
+    loop = copy.deepcopy(settled)
+    impedance = loop.controller.fused.views.impedance_velocity
+    np.testing.assert_array_equal(impedance, 0.0)  # nothing seen so far
+    for laser in ((-1e308, 0.1), (0.2, 1e300), (1e300, 0.0)):
+        inputs = loop.inputs()
+        inputs["laser"] = laser
+        command = loop.controller.step(**inputs)
+        loop.apply(inputs, command)
+        assert "laser" in command.rejected
+        np.testing.assert_array_equal(impedance, 0.0)
+    assert loop.controller.counts.laser_dropped == 3
+    inputs = loop.inputs()
+    inputs["laser"] = (0.2, 0.1)  # a real obstacle 0.2 m ahead, within d0: the impedance moves
+    loop.controller.step(**inputs)
+    assert 0.0 < np.abs(impedance).max() < 1.0
 
 
 @pytest.mark.parametrize(
