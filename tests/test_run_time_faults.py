@@ -458,3 +458,21 @@ def test_the_compile_notice_only_when_a_kernel_compiles(settled):
         njit(probe)(1.0)
     assert loud.getvalue().startswith("compiling the control kernels")
     assert announcer.compiled >= 1
+
+
+@pytest.mark.parametrize("name", ["point 1e300", "points at 1e6 px", "depth 1e300"])
+def test_a_first_frame_beyond_the_bounds_is_dropped(settled, name):
+    """With no estimate to gate against (just reset), the bounds alone drop the frame."""
+    loop = copy.deepcopy(settled)
+    loop.controller.reset()
+    while loop.steps % FRAME_EVERY:
+        loop.steps += 1
+    inputs = loop.inputs()
+    FAULTS[name](loop, inputs, np.random.default_rng(0))
+    command = loop.controller.step(**inputs)
+    loop.apply(inputs, command)
+    assert not command.seen and loop.controller.tracker.measurement is None
+    assert loop.controller.counts.frames_out_of_bounds == 1 and "dropped" in command.rejected
+    for _ in range(FRAME_EVERY):
+        command = loop.normal_step()
+    assert command.seen
