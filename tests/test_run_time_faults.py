@@ -476,3 +476,17 @@ def test_a_first_frame_beyond_the_bounds_is_dropped(settled, name):
     for _ in range(FRAME_EVERY):
         command = loop.normal_step()
     assert command.seen
+
+
+def test_a_run_logs_and_summarises_the_counts():
+    """The simulator's log keeps the counts and the summary gives the gated frames."""
+    from pbvs_pin.sim.loop import simulate
+    from pbvs_pin.sim.metrics import summarize
+
+    log = simulate(pbvs_pin.load_scenario("experiment1").with_values(duration=0.5))
+    counts = log.meta["controller_counts"]
+    assert set(counts) == {"frames_gated", "restarts", "frames_out_of_bounds", "laser_dropped",
+                           "clock_jitter"}  # fmt: skip
+    summary = summarize(log)
+    assert summary["frames_gated"] == counts["frames_gated"] == 0  # good frames all pass
+    assert summary["estimator_restarts"] == 0
