@@ -232,16 +232,15 @@ def _compile(args: argparse.Namespace) -> None:
     """
     import time
 
-    from pbvs_pin.compile_cache import COMPILE_NOTICE, kernels_cached
+    from pbvs_pin.compile_cache import announce_compiles
     from pbvs_pin.sim.loop import simulate
     from pbvs_pin.sim.scenario import load_scenario
 
-    print(
-        "control kernels already compiled; checking them" if kernels_cached() else COMPILE_NOTICE,
-        flush=True,
-    )
     started = time.perf_counter()
-    simulate(load_scenario("experiment1").with_values(duration=0.1))
+    with announce_compiles(stream=sys.stdout) as announcer:
+        simulate(load_scenario("experiment1").with_values(duration=0.1))
+    if not announcer.compiled:
+        print("control kernels already compiled; checked them", flush=True)
     elapsed = time.perf_counter() - started
     print(f"done in {elapsed:.1f} s; runs start at once from now on", flush=True)
 

@@ -9,6 +9,10 @@ joint encoders maps it to the world.
 
 The gains can be given directly or from Kalata's tracking index
 ``Lambda = sigma_w T^2 / sigma_n`` (ref. [33]).
+
+The estimated speed is clamped to ``max_speed`` (:data:`MAX_TARGET_SPEED` by default): a
+measurement that slipped past the controller's gate, or two frames a microsecond apart, move
+the estimate by ``beta / T`` times their residual, without bound otherwise.
 """
 
 from __future__ import annotations
@@ -19,6 +23,10 @@ import numpy as np
 import numpy.typing as npt
 
 from pbvs_pin.exceptions import GainError
+
+MAX_TARGET_SPEED = 10.0
+"""Largest target speed [m/s]: the filter's estimate is clamped to it, and a target velocity
+given to the controller beyond it is refused (:mod:`pbvs_pin.control.bounds`)."""
 
 
 class VelocityEstimator(abc.ABC):
@@ -49,9 +57,12 @@ class AlphaBetaFilter(VelocityEstimator):
     Args:
         alpha: Position gain, ``0 < alpha <= 1``.
         beta: Velocity gain, ``0 < beta < 4 - 2 alpha`` (stability).
+        max_speed: The estimated speed is clamped to this [m/s].
     """
 
-    def __init__(self, alpha: float = 0.5, beta: float = 0.1) -> None:
+    def __init__(
+        self, alpha: float = 0.5, beta: float = 0.1, max_speed: float = MAX_TARGET_SPEED
+    ) -> None:
         if not 0.0 < alpha <= 1.0:
             raise GainError(f"AlphaBetaFilter.alpha: expected 0 < alpha <= 1, got {alpha}", "alpha")
         if not 0.0 < beta < 4.0 - 2.0 * alpha:
@@ -60,7 +71,7 @@ class AlphaBetaFilter(VelocityEstimator):
                 f"got {beta}",
                 "beta",
             )
-        self.alpha, self.beta = alpha, beta
+        self.alpha, self.beta, self.max_speed = alpha, beta, max_speed
         self.reset()
 
     def reset(self) -> None:
@@ -85,7 +96,7 @@ class AlphaBetaFilter(VelocityEstimator):
         return cls(alpha, beta)
 
     def update(self, position: npt.ArrayLike, time: float) -> None:
-        """Predict to ``time`` and correct with the measured position."""
+        """Predict to ``time`` and correct with the measured position; clamp the speed."""
         measured = np.asarray(position, dtype=float)
         if not np.all(np.isfinite(measured)):
             return
@@ -98,7 +109,12 @@ class AlphaBetaFilter(VelocityEstimator):
         predicted = self._position + period * self._velocity
         residual = measured - predicted
         self._position = predicted + self.alpha * residual
-        self._velocity = self._velocity + self.beta / period * residual
+        velocity = self._velocity + self.beta / period * residual
+        speed = float(np.sqrt(velocity @ velocity))
+        if speed > self.max_speed:  # also catches an overflow to inf (NaN fails both tests)
+            velocity *= self.max_speed / speed
+        if np.isfinite(velocity).all():
+            self._velocity = velocity
         self._time = time
 
     @property

@@ -268,13 +268,8 @@ class FusedControlStep:
             loop_gain_margin=controller.gains.loop_gain_margin,
             **switched_on,
         )
-        self.xi_d = p.xi_d
-        self.settings = p.settings
-        """View of the constant scalars (:class:`~pbvs_pin.control.layout.Settings`)."""
         self.state = np.zeros(layout.state_size(self.indices))
-        self.views = layout.state_views(self.state, self.indices)
-        """Named views of ``state``, the last step's memory and outputs."""
-        self._u, self._v_ref, self._scalars = self.views.u, self.views.v_ref, self.views.scalars
+        self._bind_views()
         self._v2 = layout.slot(layout.StepScalars, "v2")
         self._has_previous = layout.slot(layout.StepScalars, "has_previous")
         self._pinocchio = (
@@ -284,6 +279,31 @@ class FusedControlStep:
             model.selection,
             np.zeros(model.model.nv),
         )
+
+    def _bind_views(self) -> None:
+        """Set the named views into ``params`` and ``state`` (after building or copying)."""
+        p = layout.parameter_views(self.params, self.indices)
+        self.xi_d = p.xi_d
+        self.settings = p.settings
+        """View of the constant scalars (:class:`~pbvs_pin.control.layout.Settings`)."""
+        self.views = layout.state_views(self.state, self.indices)
+        """Named views of ``state``, the last step's memory and outputs."""
+        self._u, self._v_ref, self._scalars = self.views.u, self.views.v_ref, self.views.scalars
+
+    def __getstate__(self) -> dict:
+        """The buffers without their views: a copy (``copy.deepcopy``, pickle) rebinds them.
+
+        A view copied on its own would be a separate array, no longer written by the step.
+        """
+        state = dict(self.__dict__)
+        for name in ("xi_d", "settings", "views", "_u", "_v_ref", "_scalars"):
+            del state[name]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        """Restore the buffers and bind the views to them."""
+        self.__dict__.update(state)
+        self._bind_views()
 
     @staticmethod
     def supports(controller: PassivityController, objectives: list[SecondaryObjective]) -> bool:

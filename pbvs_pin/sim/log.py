@@ -392,6 +392,7 @@ class RunRecorder:
             "detection": (
                 setup.sensor.renderer.detection_meta() if setup.sensor.renderer else None
             ),
+            "controller_counts": setup.control.counts.as_dict(),
         }
         return RunLog(channels, meta)
 

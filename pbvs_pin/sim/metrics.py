@@ -48,7 +48,9 @@ def summarize(log: RunLog) -> dict[str, Any]:
         JSON-serialisable figures: the largest absolute feature error over the final window
         and after the transient, the final error, its RMS after the transient, the smallest
         platform clearance, the arm's distance from the maximum-manipulability posture over
-        the final window, the storage function's increase and decrease after the transient,
+        the final window, the frames the innovation gate rejected and the estimator's
+        restarts (:class:`pbvs_pin.control.gating.FaultCounts`; None for a log without them),
+        the storage function's increase and decrease after the transient,
         the velocity-tracking error ``|v - u|`` (RMS of the Euclidean norm in SI units, and
         per platform/arm part), the odometry drift at the end and the platform's slip
         (:func:`pbvs_pin.sim.log.sensing_meta`; None for a log without them), and the flags
@@ -67,6 +69,7 @@ def summarize(log: RunLog) -> dict[str, Any]:
     n_base = len(log["v"][0]) - len(posture)
     limits = np.asarray(log.meta["velocity_limits"], dtype=float)
     drift, slip = log.meta.get("odometry_drift", {}), log.meta.get("slip", {})
+    counts = log.meta.get("controller_counts", {})  # control.gating.FaultCounts
     return {
         "scenario": log.meta["scenario"],
         "robot": log.meta["robot"],
@@ -95,6 +98,8 @@ def summarize(log: RunLog) -> dict[str, Any]:
         "damped_fraction": float(np.mean(log["damped"])),
         "target_lost_samples": int(np.sum(lost)),
         "target_lost_first_s": float(t[np.argmax(lost)]) if lost.any() else None,
+        "frames_gated": counts.get("frames_gated"),
+        "estimator_restarts": counts.get("restarts"),
         "joint_limit_violation": joint_limit_violation(log),
         "oscillation_rms_px": oscillation,
         "oscillation_window_start_s": window_start,
