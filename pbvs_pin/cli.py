@@ -276,7 +276,8 @@ def _view(args: argparse.Namespace) -> None:
 
 
 def _zoo(args: argparse.Namespace) -> None:
-    """``pbvs-pin zoo``: :func:`pbvs_pin.zoo.command`."""
+    """``pbvs-pin zoo``: :func:`pbvs_pin.zoo.command`, its ``--set`` read as ``run``'s."""
+    args.changes = dict(_setting(text) for text in args.set)
     zoo_command(args)
 
 

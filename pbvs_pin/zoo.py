@@ -136,9 +136,11 @@ def joint_types(robot: MobileManipulator) -> str:
 
 def run_robot(
     robot_file: ZooRobot, out: Path, experiments: tuple[str, ...], engines: tuple[str, ...],
-    duration: float | None,
+    duration: float | None, changes: dict[str, Any] | None = None,
 ) -> list[dict[str, Any]]:  # fmt: skip
     """Run one robot through ``experiments`` on ``engines``; each run's row, saved as JSON.
+
+    ``changes`` are scenario keys set in every run (``pbvs-pin zoo --set``), after the robot's.
 
     A robot that cannot be built gives one row per run with its ``error``; so does a run
     that raises (a project error's message, or the exception's type and message).
@@ -163,7 +165,7 @@ def run_robot(
             started = time.perf_counter()
             try:
                 scenario = load_scenario(experiment).with_values(
-                    **values, **{"plant.engine": engine},
+                    **values, **(changes or {}), **{"plant.engine": engine},
                     **({} if duration is None else {"duration": duration}),
                 )  # fmt: skip
                 if robot is None:  # built from its file: messages name it, paths are its own
@@ -216,7 +218,7 @@ def _figures(log: Any, summary: dict[str, Any]) -> dict[str, Any]:
 def run_zoo(
     folder: str | Path, out: str | Path, experiments: tuple[str, ...] = EXPERIMENTS,
     engines: tuple[str, ...] = ENGINES, duration: float | None = None, workers: int = 1,
-    echo: Callable[[str], None] = print,
+    echo: Callable[[str], None] = print, changes: dict[str, Any] | None = None,
 ) -> list[dict[str, Any]]:  # fmt: skip
     """Run every robot of ``folder`` (one task per robot) in a pool of ``workers`` processes.
 
@@ -229,6 +231,7 @@ def run_zoo(
         workers: Processes; 1 on a shared machine.
         echo: Told each run's :func:`progress_line` as its robot finishes (rows kept from an
             earlier sweep included).
+        changes: Scenario keys set in every run (e.g. ``{"controller.feedback": "balanced"}``).
 
     Returns:
         Every run's row, by robot then experiment then engine.
@@ -237,7 +240,9 @@ def run_zoo(
     robots = load_zoo(folder)
     with ProcessPoolExecutor(max_workers=workers) as pool:
         tasks = [
-            pool.submit(run_robot, robot, out, tuple(experiments), tuple(engines), duration)
+            pool.submit(
+                run_robot, robot, out, tuple(experiments), tuple(engines), duration, changes
+            )
             for robot in robots
         ]
         rows = []
@@ -365,6 +370,11 @@ def add_arguments(parser: argparse.ArgumentParser, output: Callable) -> None:
     parser.add_argument("--engines", default=",".join(ENGINES))
     parser.add_argument("--experiments", default=",".join(EXPERIMENTS))
     parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE",
+        help="change a scenario key in every run, e.g. --set controller.feedback=balanced "
+        "(repeatable; keep a separate --out per setting: existing rows are not rerun)",
+    )  # fmt: skip
 
 
 def command(args: argparse.Namespace) -> None:
@@ -372,7 +382,7 @@ def command(args: argparse.Namespace) -> None:
     engines = tuple(args.engines.split(","))
     started = time.perf_counter()
     rows = run_zoo(args.folder, args.out, tuple(args.experiments.split(",")), engines,
-                   args.duration, args.workers)  # fmt: skip
+                   args.duration, args.workers, changes=getattr(args, "changes", None))  # fmt: skip
     print(f"{len(rows)} runs in {time.perf_counter() - started:.0f} s")
     table = zoo_table(rows, engines)
     for field, title in (("error", "Runs that raised"), ("warning", "Runs that warned")):
