@@ -251,7 +251,9 @@ def reproduce(
     ideal = _idealised_runs(analyses, out, echo) if idealised else None
     echo(f"writing the report {out / 'report.md'}")
     comparison = baseline_section(pairs, gain) if baseline else ""
-    findings = findings_section(reference, others, pairs, modes, analyses, ideal)
+    findings = findings_section(
+        reference, others, pairs, modes, analyses, ideal, classic=classic, plants=plants
+    )
     text = _report(reference, others, classic, modes, replays, findings)
     text += _engines_section(plants) + comparison + _analysis_section(analyses)
     text += _idealised_section(ideal) + robust
