@@ -26,12 +26,18 @@ from pbvs_pin.exceptions import (
     GainError,
     PbvsError,
     RobotNotFound,
-    RunInterrupted,
     ScenarioError,
     UsageError,
     ViewerUnavailable,
 )
-from pbvs_pin.interrupts import held_interrupts, interrupted_in_compiled_code
+from pbvs_pin.interrupts import (
+    INTERRUPTED,
+    held_interrupts,
+    interrupted_in_compiled_code,
+    interrupted_line,
+    loaded,
+    stage,
+)
 from pbvs_pin.outputs import Output, check_output, replace_run_folder
 from pbvs_pin.report import ENGINE_ROBOTS
 from pbvs_pin.validation import positive_number
@@ -428,7 +434,12 @@ def build_parser() -> argparse.ArgumentParser:
         "compile",
         help="compile the control kernels now (once after installing; else the first run does)",
     )
-    compiling.set_defaults(handler=_compile, simulates=True)
+    compiling.set_defaults(
+        handler=_compile,
+        simulates=True,
+        interrupted=lambda args: "the kernels compiled before it stay cached, the others "
+        "compile on the next run",
+    )
     reproduce = commands.add_parser("reproduce", help="run the paper's four experiments")
     output_option(reproduce, "--out", Output.RUN_FOLDER, default="results", help="output folder")
     reproduce.add_argument("--force", action="store_true", help=FORCE_HELP)
@@ -459,7 +470,12 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="skip the comparison of the compensation modes (8 runs)",
     )
-    reproduce.set_defaults(handler=_reproduce, simulates=True)
+    reproduce.set_defaults(
+        handler=_reproduce,
+        simulates=True,
+        interrupted=lambda args: f"the runs finished before it are kept in {args.out}; the "
+        "report was not written",
+    )
     view = commands.add_parser("view", help="show a robot, its camera frame and frustum")
     view.add_argument("robot", help=ROBOT_HELP)
     output_option(
@@ -491,31 +507,30 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-INTERRUPTED = 130
-"""Exit status after Ctrl-C (128 + SIGINT), as a shell reports it."""
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status."""
-    args = build_parser().parse_args(argv)
-    handler: Callable[[argparse.Namespace], None] = args.handler
+    args = None
     try:
+        loaded()  # from here on a Ctrl-C is a KeyboardInterrupt, told in one line below
+        stage("start-up")
+        args = build_parser().parse_args(argv)
+        handler: Callable[[argparse.Namespace], None] = args.handler
         check_outputs(args)
+        if not args.simulates:
+            stage("command")
         with held_interrupts() if args.simulates else nullcontext():
             handler(args)
     except PbvsError as err:
         print(f"pbvs-pin: error: {err}", file=sys.stderr)
         return 2
-    except RunInterrupted as stop:
-        print(f"pbvs-pin: {_interrupted(stop)}", file=sys.stderr)
-        return INTERRUPTED
-    except KeyboardInterrupt:
-        print("pbvs-pin: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as stop:
+        print(f"pbvs-pin: {interrupted_line(stop, _interrupt_note(args))}", file=sys.stderr)
         return INTERRUPTED
     except SystemError as err:  # Ctrl-C outside a simulation, inside a compiled kernel
         if not interrupted_in_compiled_code(err):
             raise
-        print("pbvs-pin: interrupted", file=sys.stderr)
+        line = interrupted_line(KeyboardInterrupt(), _interrupt_note(args))
+        print(f"pbvs-pin: {line}", file=sys.stderr)
         return INTERRUPTED
     except BrokenPipeError:  # e.g. `pbvs-pin list | head`: the reader left, nothing to say
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -523,15 +538,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
-def _interrupted(stop: RunInterrupted) -> str:
-    """One line: where the run stopped and where the run so far is."""
-    if stop.log is None:
-        return "interrupted before the first logged step; nothing was saved"
-    log = stop.log
-    stopped = f"interrupted at t = {log['t'][-1]:.2f} s of {log.meta['duration']:g} s"
-    if stop.saved is None:
-        return f"{stopped}; the run so far was not saved"
-    return f"{stopped}; the run so far is in {stop.saved} (meta interrupted = true)"
+def _interrupt_note(args: argparse.Namespace | None) -> str:
+    """What a command adds to the line of an interruption.
+
+    Its ``interrupted`` default, or, for a command that holds no Ctrl-C, what it may have
+    written.
+    """
+    note = getattr(args, "interrupted", None)
+    if note is not None:
+        return note(args)
+    if args is None or args.simulates:
+        return ""
+    paths = [getattr(args, dest) for dest, _ in getattr(args, "outputs", ())]
+    paths = [str(path) for path in paths if path is not None]
+    if not paths:
+        return "nothing was written"
+    return f"what it wrote to {', '.join(paths)} before it is kept; the rest was not written"
 
 
 if __name__ == "__main__":

@@ -187,3 +187,13 @@ def test_every_comparison_run_that_fails_its_rule_is_named():
     assert "**Comparison runs**: all 7 meet their experiment's rule." in passing
     assert "fail their experiment's rule" not in passing
     assert "Comparison runs" not in findings_section(reference, [], [], [], [])
+
+
+def test_reproduce_progress_rows_name_the_plant_and_the_compensation_mode():
+    from pbvs_pin.experiments import progress_row
+
+    s = summary("experiment4", final=5.68, compensation="all", engine="mujoco")
+    row = progress_row(7, 60, s)
+    assert row.startswith("[7/60] mujoco plant, compensation all: | pioneer_cyton | experiment4 |")
+    assert row.endswith(run_row(s))
+    assert "| NOT met (experiment4's rule) | 5.68 |" in row
