@@ -112,7 +112,13 @@ def _normalised(text: str) -> str:
 
 
 def _list(args: argparse.Namespace) -> None:
-    """Print the shipped robots, example-robot-data arms, scenarios and sweeps."""
+    """Print the shipped robots, example-robot-data arms, scenarios and sweeps.
+
+    With ``--keys``: every scenario key instead (:func:`_list_keys`).
+    """
+    if args.keys:
+        _list_keys()
+        return
     from pbvs_pin.catalogue import example_robot_data_arms
     from pbvs_pin.sim.scenario import shipped_scenarios
     from pbvs_pin.sweep.spec import sweep_dir
@@ -130,6 +136,21 @@ def _list(args: argparse.Namespace) -> None:
     for title, names in sections:
         print(f"{title}:")
         print("\n".join(f"  {name}" for name in names))
+
+
+def _list_keys() -> None:
+    """Print every scenario key (``--set KEY=VALUE``): dotted name, default, meaning."""
+    from pbvs_pin.sim.keys import keys_of
+    from pbvs_pin.sim.scenario import Scenario
+    from pbvs_pin.sim.sections import SECTIONS
+
+    print("scenario keys (pbvs-pin run SCENARIO --set KEY=VALUE; VALUE is read as TOML):")
+    for section in (Scenario, *SECTIONS):
+        for spec in keys_of(section):
+            name = f"{section.TABLE}.{spec.name}" if section.TABLE else spec.name
+            default = json.dumps(list(spec.default) if isinstance(spec.default, tuple)
+                                 else spec.default)  # fmt: skip
+            print(f"  {name} = {default}  # {spec.metadata['doc']}")
 
 
 def _run_scenario(args: argparse.Namespace) -> Scenario:
@@ -208,19 +229,29 @@ def _run(args: argparse.Namespace) -> None:
                 f"pbvs-pin: no live view ({err.reason}); running without it; {watch}",
                 file=sys.stderr,
             )
+    eye = args.eye_view
     if live is None:
-        summary = run_scenario(scenario, out, html)[1]
+        summary = run_scenario(scenario, out, html, eye_view=eye)[1]
     else:
         with live:
             print(f"live view: {live.url} (playing at {speed:g}x real time)")
-            summary = run_scenario(scenario, out, html, observer=live.show)[1]
-    from pbvs_pin.sim.log import json_safe
-
-    print(json.dumps(json_safe(summary), indent=2))
-    print(f"log, summary and figures written to {out}" + (f"; replay: {html}" if html else ""))
+            summary = run_scenario(scenario, out, html, observer=live.show, eye_view=eye)[1]
     verdict = _verdict(summary)
     if verdict is not None:
         print(verdict)
+    if args.json:
+        from pbvs_pin.sim.log import json_safe
+
+        print(json.dumps(json_safe(summary), indent=2))
+    eye_file = f"; robot's-eye view: {out / f'eye_view.{_EYE_SUFFIX[eye]}'}" if eye else ""
+    print(
+        f"log, summary (summary.json{'' if args.json else '; --json prints it'}) and figures "
+        f"written to {out}" + (f"; replay: {html}" if html else "") + eye_file
+    )
+
+
+_EYE_SUFFIX = {"strip": "png", "video": "mp4"}
+"""File suffix of each ``--eye-view``."""
 
 
 def _compile(args: argparse.Namespace) -> None:
@@ -372,8 +403,9 @@ class _DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
     def _get_help_string(self, action: argparse.Action) -> str:
         if action.default is None or action.default is False:
             return action.help or ""
-        if isinstance(action.default, list):
-            return f"{action.help} (default: {' '.join(action.default)})"
+        if isinstance(action.default, list):  # an empty list is no default to show
+            shown = " ".join(action.default)
+            return f"{action.help} (default: {shown})" if shown else action.help or ""
         return super()._get_help_string(action) or ""
 
 
@@ -400,6 +432,12 @@ def build_parser() -> argparse.ArgumentParser:
     listing = commands.add_parser(
         "list", help="name the shipped robots, example-robot-data arms, scenarios and sweeps"
     )
+    listing.add_argument(
+        "--keys",
+        action="store_true",
+        help="list every scenario key instead (what `run --set KEY=VALUE` changes), with its "
+        "default and meaning",
+    )
     listing.set_defaults(handler=_list)
     run = commands.add_parser("run", help="simulate one scenario (shipped name or TOML path)")
     run.add_argument(
@@ -408,21 +446,32 @@ def build_parser() -> argparse.ArgumentParser:
         "scenario TOML file",
     )
     run.add_argument(
-        "--robot", help="robot instead of the scenario's: " + ROBOT_HELP.replace(" or a ", ", a ")
+        "--robot", help="robot instead of the scenario's: " + ROBOT_HELP
     )
     run.add_argument(
         "--set",
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="change a scenario key, e.g. --set camera.rate=60 --set target.xi_d=[0,50,-50] "
-        "(repeatable; `pbvs-pin run --help` keys are those of the scenario reference)",
+        help="change one key of the scenario for this run: a dotted key (TABLE.KEY, or KEY "
+        "at the top) and a TOML value, e.g. --set camera.rate=60 --set "
+        "target.xi_d=[0,50,-50] --set controller.law=ibvs; repeatable; `pbvs-pin list "
+        "--keys` lists every key with its default and meaning",
     )
     run.add_argument("--engine", choices=("pinocchio", "mujoco"), help="physics of the plant")
     run.add_argument("--duration", type=_positive_float, help="simulated time [s]")
     output_option(run, "--out", Output.RUN_FOLDER, default="results/run", help="output folder")
     output_option(run, "--html", Output.FILE, help="also write a standalone HTML replay here")
     run.add_argument("--force", action="store_true", help=FORCE_HELP)
+    run.add_argument(
+        "--eye-view",
+        choices=("strip", "video"),
+        help="also save the robot's-eye view (what the camera saw, marked) in OUT: strip as "
+        "eye_view.png, video as eye_view.mp4; a --html replay then shows it",
+    )
+    run.add_argument(
+        "--json", action="store_true", help="also print the summary (OUT/summary.json) as JSON"
+    )
     run.add_argument("--meshcat", action="store_true", help="open a live Meshcat view")
     run.add_argument(
         "--speed",

@@ -35,7 +35,7 @@ def scenario_of_run(monkeypatch):
     """The scenario ``run`` would simulate, caught before the simulation."""
     caught = []
 
-    def trap(scenario, out, html=None, observer=None):
+    def trap(scenario, out, html=None, observer=None, eye_view=None):
         caught.append(scenario)
         raise SystemExit(0)
 
@@ -119,6 +119,36 @@ def test_the_verdict_names_the_claim_and_its_rule():
     summary["max_abs_error_final_window_px"] = 0.7
     assert "does NOT meet" in cli._verdict(summary)
     assert cli._verdict({**summary, "scenario": "my_own"}) is None
+
+
+@pytest.mark.parametrize("options", [[], ["--json"], ["--eye-view", "strip", "--json"]])
+def test_run_prints_its_verdict_first_and_json_only_when_asked(tmp_path, capsys, monkeypatch,
+                                                                options):  # fmt: skip
+    """The printout of a finished run (the run itself replaced by a hand-built summary)."""
+    import json
+
+    summary = {"scenario": "experiment4", "max_abs_error_final_window_px": 0.2,
+               "target_lost_samples": 0, "joint_limit_violation": 0.0,
+               "oscillation_rms_px": 0.0}  # fmt: skip
+    asked = []
+
+    def finished(scenario, out, html=None, observer=None, eye_view=None):
+        asked.append(eye_view)
+        return None, summary
+
+    monkeypatch.setattr("pbvs_pin.experiments.run_scenario", finished)
+    out = tmp_path / "out"
+    assert main(["run", "experiment4", "--out", str(out), *options]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("verdict: experiment4 meets the paper's claim")
+    assert lines[-1].startswith("log, summary (summary.json") and str(out) in lines[-1]
+    if "--json" in options:
+        assert json.loads("\n".join(lines[1:-1])) == summary
+    else:
+        assert len(lines) == 2 and "--json prints it" in lines[-1]
+    assert asked == [options[1] if "--eye-view" in options else None]
+    if "--eye-view" in options:
+        assert lines[-1].endswith(f"robot's-eye view: {out / 'eye_view.png'}")
 
 
 # ---------------------------------------------------------------- list: arms only
