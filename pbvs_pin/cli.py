@@ -114,10 +114,14 @@ def _normalised(text: str) -> str:
 def _list(args: argparse.Namespace) -> None:
     """Print the shipped robots, example-robot-data arms, scenarios and sweeps.
 
-    With ``--keys``: every scenario key instead (:func:`_list_keys`).
+    With ``--keys``: every scenario key instead
+    (:func:`pbvs_pin.sim.scenario.key_lines`).
     """
-    if args.keys:
-        _list_keys()
+    if args.keys:  # what --set changes
+        from pbvs_pin.sim.scenario import key_lines
+
+        print("scenario keys (pbvs-pin run SCENARIO --set KEY=VALUE; VALUE is read as TOML):")
+        print("\n".join(f"  {line}" for line in key_lines()))
         return
     from pbvs_pin.catalogue import example_robot_data_arms
     from pbvs_pin.sim.scenario import shipped_scenarios
@@ -136,21 +140,6 @@ def _list(args: argparse.Namespace) -> None:
     for title, names in sections:
         print(f"{title}:")
         print("\n".join(f"  {name}" for name in names))
-
-
-def _list_keys() -> None:
-    """Print every scenario key (``--set KEY=VALUE``): dotted name, default, meaning."""
-    from pbvs_pin.sim.keys import keys_of
-    from pbvs_pin.sim.scenario import Scenario
-    from pbvs_pin.sim.sections import SECTIONS
-
-    print("scenario keys (pbvs-pin run SCENARIO --set KEY=VALUE; VALUE is read as TOML):")
-    for section in (Scenario, *SECTIONS):
-        for spec in keys_of(section):
-            name = f"{section.TABLE}.{spec.name}" if section.TABLE else spec.name
-            default = json.dumps(list(spec.default) if isinstance(spec.default, tuple)
-                                 else spec.default)  # fmt: skip
-            print(f"  {name} = {default}  # {spec.metadata['doc']}")
 
 
 def _run_scenario(args: argparse.Namespace) -> Scenario:

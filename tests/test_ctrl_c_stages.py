@@ -87,3 +87,28 @@ def test_ctrl_c_while_the_modules_load_is_one_line(tmp_path):
     line = _said(process)
     assert line.startswith("pbvs-pin: interrupted ") and "nothing was" in line
     assert not (tmp_path / "out").exists()
+
+
+def test_each_command_says_what_an_interruption_leaves():
+    """reproduce keeps its finished runs but not its report; analyze names its folder; info
+    writes nothing; run's own line says it all (no note)."""
+    from pbvs_pin.cli import _interrupt_note, build_parser
+    from pbvs_pin.exceptions import OutputsInterrupted
+    from pbvs_pin.interrupts import interrupted_line
+
+    def note(*argv: str) -> str:
+        return _interrupt_note(build_parser().parse_args(argv))
+
+    assert note("reproduce", "--out", "R") == (
+        "the runs finished before it are kept in R; the report was not written"
+    )
+    assert note("analyze", "log.npz", "--out", "A") == (
+        "what it wrote to A before it is kept; the rest was not written"
+    )
+    assert note("info", "pioneer_cyton") == "nothing was written"
+    assert note("run", "experiment1") == ""
+    stop = OutputsInterrupted(["the log L"], ["the figures in F"])
+    assert interrupted_line(stop, note("reproduce", "--out", "R")) == (
+        "interrupted while writing the outputs; kept: the log L; lost: the figures in F; the "
+        "runs finished before it are kept in R; the report was not written"
+    )
