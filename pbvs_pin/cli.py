@@ -32,6 +32,7 @@ from pbvs_pin.exceptions import (
 )
 from pbvs_pin.interrupts import (
     INTERRUPTED,
+    finished,
     held_interrupts,
     interrupted_in_compiled_code,
     interrupted_line,
@@ -232,15 +233,12 @@ def _run(args: argparse.Namespace) -> None:
         from pbvs_pin.sim.log import json_safe
 
         print(json.dumps(json_safe(summary), indent=2))
-    eye_file = f"; robot's-eye view: {out / f'eye_view.{_EYE_SUFFIX[eye]}'}" if eye else ""
+    suffix = "mp4" if eye == "video" else "png"
+    eye_file = f"; robot's-eye view: {out / f'eye_view.{suffix}'}" if eye else ""
     print(
         f"log, summary (summary.json{'' if args.json else '; --json prints it'}) and figures "
         f"written to {out}" + (f"; replay: {html}" if html else "") + eye_file
     )
-
-
-_EYE_SUFFIX = {"strip": "png", "video": "mp4"}
-"""File suffix of each ``--eye-view``."""
 
 
 def _compile(args: argparse.Namespace) -> None:
@@ -573,6 +571,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # e.g. `pbvs-pin list | head`: the reader left, nothing to say
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+    finally:
+        finished()
     return 0
 
 

@@ -32,10 +32,11 @@ _held = {"active": False, "pending": False, "simulating": False, "stage": "impor
 INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as a shell reports it."""
 
-STAGES = ("imports", "start-up", "simulation", "outputs", "written", "command")
+STAGES = ("imports", "start-up", "simulation", "outputs", "written", "command", "exit")
 """The stages of a ``pbvs-pin`` command: loading its modules, reading its inputs and
 compiling, simulating, writing a finished run's outputs, and after they are written; or
-running a command that holds no Ctrl-C (``info``, ``analyze``, ...)."""
+running a command that holds no Ctrl-C (``info``, ``analyze``, ...); and its exit, once its
+status is decided (:func:`finished`: a Ctrl-C is ignored)."""
 
 INTERRUPT_AT = "PBVS_PIN_INTERRUPT_AT"
 """Environment variable: the stage (of :data:`STAGES`) on whose entry the process sends
@@ -51,6 +52,7 @@ _SAID = {
     "outputs": "interrupted while writing the outputs",
     "written": "interrupted after the outputs were written; nothing was lost",
     "command": "interrupted",
+    "exit": "interrupted as it exited; nothing was lost",
 }
 
 
@@ -89,6 +91,17 @@ def loaded() -> None:
     """The command's modules are loaded: Ctrl-C raises ``KeyboardInterrupt`` again."""
     if signal.getsignal(signal.SIGINT) is _while_loading:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def finished() -> None:
+    """The command is done and its status decided: ignore a later Ctrl-C.
+
+    In the ``pbvs-pin`` process only, where a Ctrl-C while the interpreter shuts down could
+    only end it by the signal, without a line, and lose nothing.
+    """
+    if launched_as_command() and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        stage("exit")
 
 
 def interrupted_line(stop: BaseException, note: str = "") -> str:

@@ -44,7 +44,7 @@ def _said(process: subprocess.Popen) -> str:
     return lines[0]
 
 
-@pytest.mark.parametrize("stage", [s for s in STAGES if s != "command"])
+@pytest.mark.parametrize("stage", [s for s in STAGES if s not in ("command", "exit")])
 def test_ctrl_c_at_each_stage_names_what_was_kept_and_lost(tmp_path, stage):
     line = _said(_run(tmp_path, **{INTERRUPT_AT: stage}))
     out, replay = tmp_path / "out", tmp_path / "replay.html"
@@ -74,6 +74,17 @@ def test_ctrl_c_at_each_stage_names_what_was_kept_and_lost(tmp_path, stage):
     if stage == "written":
         assert line == "pbvs-pin: interrupted after the outputs were written; nothing was lost"
         assert {"log.npz", "summary.json", PNG} <= written and replay.is_file()
+
+
+def test_ctrl_c_once_the_command_is_done_is_ignored(tmp_path):
+    """As the interpreter shuts down it could only kill the process by the signal (no line,
+    status -2) and lose nothing: it is ignored, the status stays 0."""
+    process = _run(tmp_path, **{INTERRUPT_AT: "exit"})
+    out, err = process.communicate(timeout=600)
+    assert process.returncode == 0, err
+    assert "Traceback" not in err and "pbvs-pin:" not in err
+    assert out.splitlines()[-1].startswith("log, summary (summary.json")
+    assert (tmp_path / "out" / "summary.json").is_file() and (tmp_path / "replay.html").is_file()
 
 
 def test_ctrl_c_while_the_modules_load_is_one_line(tmp_path):
