@@ -80,11 +80,16 @@ def _while_loading(signum: int, frame: object) -> None:
 
 
 def launched_as_command() -> bool:
-    """Whether this process is the ``pbvs-pin`` command (or ``python -m pbvs_pin.cli``)."""
+    """Whether this process is the ``pbvs-pin`` command (or ``python -m pbvs_pin.cli``).
+
+    Read from the process's own command line (``sys.orig_argv``), which a multiprocessing
+    worker does not share with its parent (it gets the parent's ``sys.argv``).
+    """
     argv = getattr(sys, "orig_argv", [])
-    by_module = "-m" in argv[:-1] and argv[argv.index("-m") + 1] == "pbvs_pin.cli"
-    name = os.path.basename(sys.argv[0]) if sys.argv else ""
-    return by_module or name.removesuffix(".exe").removesuffix("-script.py") == "pbvs-pin"
+    if "-m" in argv[:-1]:
+        return argv[argv.index("-m") + 1] == "pbvs_pin.cli"
+    names = [os.path.basename(arg).removesuffix(".exe") for arg in argv[:2]]
+    return "pbvs-pin" in names or "pbvs-pin-script.py" in names
 
 
 def loaded() -> None:

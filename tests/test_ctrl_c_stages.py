@@ -123,3 +123,23 @@ def test_each_command_says_what_an_interruption_leaves():
         "interrupted while writing the outputs; kept: the log L; lost: the figures in F; the "
         "runs finished before it are kept in R; the report was not written"
     )
+
+
+@pytest.mark.parametrize(
+    ("orig_argv", "launched"),
+    [
+        (["/venv/bin/python3", "/venv/bin/pbvs-pin", "run", "experiment1"], True),
+        (["python", "-m", "pbvs_pin.cli", "list"], True),
+        (["pbvs-pin.exe", "list"], True),
+        (["python", "-c", "from multiprocessing.spawn import spawn_main; spawn_main()",
+          "--multiprocessing-fork"], False),  # a sweep's worker: the parent's argv, not its own
+        (["python", "-m", "pytest", "tests"], False),
+        (["python", "my_script.py"], False),
+    ],
+)  # fmt: skip
+def test_only_the_command_takes_ctrl_c_over_while_loading(monkeypatch, orig_argv, launched):
+    from pbvs_pin.interrupts import launched_as_command
+
+    monkeypatch.setattr(sys, "orig_argv", orig_argv)
+    monkeypatch.setattr(sys, "argv", ["/venv/bin/pbvs-pin", "run"])  # as a spawned worker has
+    assert launched_as_command() is launched
