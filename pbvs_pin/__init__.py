@@ -13,6 +13,10 @@ capture times and laser readings in, velocity references out; built from
 :class:`ControllerSettings` or a scenario.
 """
 
+# interrupts first: a Ctrl-C while the command loads its modules is one line (its docstring)
+from pbvs_pin import interrupts as interrupts
+
+# isort: split
 from importlib.metadata import PackageNotFoundError, version
 
 # compile_cache (first, as sorted) keys Numba's cache on the kernels' sources

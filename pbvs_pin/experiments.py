@@ -18,6 +18,7 @@ from pbvs_pin.claims import judge
 from pbvs_pin.exceptions import (
     GainError,
     OutputError,
+    OutputsInterrupted,
     RobotNotFound,
     RunInterrupted,
     ScenarioError,
@@ -27,6 +28,7 @@ from pbvs_pin.interrupts import (
     interrupt_point,
     interrupts_held,
     simulating,
+    stage,
     with_interrupt_point,
 )
 from pbvs_pin.report import (
@@ -92,51 +94,77 @@ def run_scenario(
             fails (a full disk).
         RunInterrupted: On Ctrl-C during the simulation, after the run so far was saved as
             ``out/log.npz`` (``meta["interrupted"]`` true; no summary, figures or replay).
+        OutputsInterrupted: On Ctrl-C while the finished run's outputs are written, naming
+            those written whole and those not written.
         GainError: If ``eye_view`` is neither ``"strip"`` nor ``"video"`` (before simulating).
     """
-    from pbvs_pin.viz.figures import plot_run
-
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     check_writable(out, *([html] if html is not None else []))
     if eye_view not in (None, "strip", "video"):
         raise GainError(f"eye view: expected 'strip' or 'video', got {eye_view!r}", "eye_view")
     held = interrupts_held()  # Ctrl-C taken at a logged instant, never inside compiled code
+    suffix = "mp4" if eye_view == "video" else "png"
+    outputs = [
+        (f"the log {out / 'log.npz'}", "", True),
+        (f"the summary {out / 'summary.json'}", "", True),
+        (f"the figures in {out}", "figures", figures),
+        (f"the replay {html}", "replay", html is not None),
+        (f"the eye view {out / f'eye_view.{suffix}'}", "eye view", eye_view is not None),
+    ]
+    outputs = [(name, what) for name, what, wanted in outputs if wanted]
     try:
         with simulating() if held else nullcontext():
+            stage("simulation")
             observer = with_interrupt_point(observer) if held else observer
             log = simulate(scenario, progress=progress, observer=observer)
     except RunInterrupted as stop:
+        stop.lost = tuple(name for name, _ in outputs[1:])
         if stop.log is not None:
             stop.saved = str(stop.log.save(out))
         raise
-    log.save(out)
-    summary = summarize(log)
-    summary |= judge(summary)  # met, not_judged, rule, clauses
-    write_json_atomically(out / "summary.json", summary)
-    interrupt_point()  # a Ctrl-C held after the last logged instant: the run is saved
+    kept: list[str] = []
     try:
-        if figures:
+        with simulating() if held else nullcontext():  # a Ctrl-C waits for log and summary
+            stage("outputs")
+            log.save(out)
+            kept.append(outputs[0][0])
+            summary = summarize(log)
+            summary |= judge(summary)  # met, not_judged, rule, clauses
+            write_json_atomically(out / "summary.json", summary)
+            kept.append(outputs[1][0])
+        interrupt_point()  # a Ctrl-C held after the last logged instant: the run is saved
+        for name, what in outputs[2:]:
             if status is not None:
-                status("figures")
-            plot_run(log, out, footprint=(scenario.platform.length, scenario.platform.width))
-        if html is not None:
-            from pbvs_pin.viz.replay import write_run_replay
-
-            if status is not None:
-                status("replay")
-            write_run_replay(log, html, eye_view=eye_view is not None)
-        if eye_view is not None:
-            from pbvs_pin.viz.eye_view import write_eye_view
-
-            if status is not None:
-                status("eye view")
-            suffix = "mp4" if eye_view == "video" else "png"
-            write_eye_view(log, out / f"eye_view.{suffix}", eye_view)
+                status(what)
+            _write_output(what, log, scenario, out, html, eye_view)
+            kept.append(name)
     except OSError as err:
         where = err.filename or out
         raise OutputError(str(where), f"cannot write ({err.strerror or err})") from err
+    except KeyboardInterrupt as stop:
+        lost = [name for name, _ in outputs if name not in kept]
+        raise OutputsInterrupted(kept, lost) from stop
+    stage("written")
     return log, summary
+
+
+def _write_output(
+    what: str, log: RunLog, scenario: Scenario, out: Path, html: Path | None, eye: str | None
+) -> None:
+    """Write one output of a finished run: ``"figures"``, ``"replay"`` or ``"eye view"``."""
+    if what == "figures":
+        from pbvs_pin.viz.figures import plot_run
+
+        plot_run(log, out, footprint=(scenario.platform.length, scenario.platform.width))
+    elif what == "replay" and html is not None:
+        from pbvs_pin.viz.replay import write_run_replay
+
+        write_run_replay(log, html, eye_view=eye is not None)
+    elif what == "eye view" and eye is not None:
+        from pbvs_pin.viz.eye_view import write_eye_view
+
+        write_eye_view(log, out / f"eye_view.{'mp4' if eye == 'video' else 'png'}", eye)
 
 
 def with_robot(scenario: Scenario, robot: str) -> Scenario:
@@ -166,6 +194,14 @@ def with_robot(scenario: Scenario, robot: str) -> Scenario:
     raw["robot"] = table
     changed = parse_scenario(raw, scenario.source)
     return changed if own is None else replace(changed, robot=own)
+
+
+def progress_row(done: int, jobs: int, summary: dict[str, Any]) -> str:
+    """``[3/60] pinocchio plant, compensation platform: | robot | ... |`` of a finished run."""
+    return (
+        f"[{done}/{jobs}] {summary['engine']} plant, compensation {summary['compensation']}: "
+        f"{run_row(summary)}"
+    )
 
 
 def robot_label(robot: str) -> str:
@@ -229,11 +265,12 @@ def reproduce(
     def finished(summary: dict[str, Any]) -> dict[str, Any]:
         nonlocal done
         done += 1
-        echo(f"[{done}/{jobs}] {run_row(summary)}")
+        echo(progress_row(done, jobs, summary))
         return summary
 
     _compile(engines, echo)
-    echo(f"{jobs} runs; after each, its row: {RUN_HEADER.splitlines()[0]}")
+    echo(f"{jobs} runs; after each, its plant, its compensation mode and its row: "
+         f"{RUN_HEADER.splitlines()[0]}")  # fmt: skip
     for name in CLAIMS:
         folder = out / name
         passivity_log, passivity = run_scenario(
@@ -259,7 +296,9 @@ def reproduce(
     ideal = _idealised_runs(analyses, out, echo) if idealised else None
     echo(f"writing the report {out / 'report.md'}")
     comparison = baseline_section(pairs, gain) if baseline else ""
-    findings = findings_section(reference, others, pairs, modes, analyses, ideal)
+    findings = findings_section(
+        reference, others, pairs, modes, analyses, ideal, classic=classic, plants=plants
+    )
     text = _report(reference, others, classic, modes, replays, findings)
     text += _engines_section(plants) + comparison + _analysis_section(analyses)
     text += _idealised_section(ideal) + robust

@@ -53,8 +53,7 @@ def _count(flags: Sequence[bool]) -> str:
 
 def claims_paragraph(reference: list[dict[str, Any]]) -> list[str]:
     """One line per experiment: the verdict, the rule it is judged by, the deciding figure."""
-    from pbvs_pin.claims import CLAIMS, SOUND, judge, verdict_parts
-    from pbvs_pin.report import flags
+    from pbvs_pin.claims import judge, verdict_parts
 
     said = [verdict_parts(judge(s))[0] for s in reference]
     met = [word == "met" for word in said]
@@ -65,16 +64,64 @@ def claims_paragraph(reference: list[dict[str, Any]]) -> list[str]:
         "oscillation)."
     ]
     for s, word in zip(reference, said, strict=True):
-        rule = "; ".join(c.text for c in CLAIMS[s["scenario"]].clauses if c not in SOUND)
-        trouble = "; ".join(flags(s))
         lines.append(
-            f"  - {_name(s['scenario'])}: {word} by the rule "
-            f"\"{rule}\": {s['max_abs_error_final_window_px']:.2f} px over the last 5 s, "
-            f"{s['max_abs_error_after_transient_px']:.1f} px at most after 2 s"
-            + (f"; {trouble}" if trouble else "")
-            + "."
+            f"  - {_name(s['scenario'])}: {word} by the rule {_figures(s)}."
         )
     return lines
+
+
+def _figures(s: dict[str, Any]) -> str:
+    """``"RULE": 5.68 px over the last 5 s, 9.1 px at most after 2 s; FLAGS`` of one run.
+
+    The rule without the clauses every experiment shares (target never lost, ...).
+    """
+    from pbvs_pin.claims import CLAIMS, SOUND
+    from pbvs_pin.report import flags
+
+    rule = "; ".join(c.text for c in CLAIMS[s["scenario"]].clauses if c not in SOUND)
+    trouble = "; ".join(flags(s))
+    return (
+        f'"{rule}": {s["max_abs_error_final_window_px"]:.2f} px over the last 5 s, '
+        f"{s['max_abs_error_after_transient_px']:.1f} px at most after 2 s"
+        + (f"; {trouble}" if trouble else "")
+    )
+
+
+def comparisons_paragraph(
+    reference: list[dict[str, Any]],
+    modes: list[dict[str, Any]],
+    classic: Sequence[dict[str, Any]] = (),
+    plants: Sequence[dict[str, Any]] = (),
+) -> list[str]:
+    """Every comparison run that fails its experiment's rule, named with its figures.
+
+    The comparison runs are the compensation modes other than each experiment's own (the
+    reference run's), the classic IBVS baseline and the MuJoCo plant's runs.
+    """
+    from pbvs_pin.claims import claim_met
+
+    own = {s["scenario"]: s["compensation"] for s in reference}
+    runs = [
+        (f"compensation mode `{s['compensation']}`", s)
+        for s in modes
+        if s["compensation"] != own.get(s["scenario"])
+    ]
+    runs += [("the classic IBVS baseline", s) for s in classic]
+    runs += [(f"the MuJoCo plant ({s['robot']})", s) for s in plants if s["engine"] == "mujoco"]
+    if not runs:
+        return []
+    failing = [
+        f"  - {label} in {_name(s['scenario'])}: NOT met by the rule {_figures(s)}."
+        for label, s in runs
+        if claim_met(s) is False
+    ]
+    if not failing:
+        return [f"- **Comparison runs**: all {len(runs)} meet their experiment's rule."]
+    return [
+        f"- **Comparison runs that fail their experiment's rule**: {len(failing)} of "
+        f"{len(runs)} (compensation modes, IBVS baseline, MuJoCo plant):",
+        *failing,
+    ]
 
 
 def others_paragraph(others: list[dict[str, Any]]) -> list[str]:
@@ -250,8 +297,14 @@ def findings_section(
     modes: list[dict[str, Any]],
     analyses: list[dict[str, Any]],
     idealised: dict[str, list[dict[str, Any]]] | None = None,
+    classic: Sequence[dict[str, Any]] = (),
+    plants: Sequence[dict[str, Any]] = (),
 ) -> str:
-    """The report's opening section, in plain words (see the module docstring)."""
+    """The report's opening section, in plain words (see the module docstring).
+
+    ``classic`` and ``plants`` are the IBVS baseline's and both plants' run summaries, named
+    with the compensation modes where they fail a rule (:func:`comparisons_paragraph`).
+    """
     lines = [
         "## Findings",
         "",
@@ -265,6 +318,7 @@ def findings_section(
         *others_paragraph(others),
         *baseline_paragraph(pairs),
         *compensation_paragraph(modes),
+        *comparisons_paragraph(reference, modes, classic, plants),
         *passivity_paragraph(analyses, idealised),
         "",
     ]

@@ -34,7 +34,8 @@ FLAG_RULES = (
     f"the platform's clearance went below 0; *oscillation a px*: the feature error's part "
     f"above {OSCILLATION_CUTOFF_HZ:g} Hz (4th-order zero-phase Butterworth high-pass after 2 s), "
     f"RMS over its worst 5 s window, is above {OSCILLATION_FLAG_PX:g} px. *u sat*: fraction of "
-    "samples where the controller scaled u down to the velocity limits; *v_ref lim*: fraction "
+    "samples where the velocity limits cut the command (u scaled down, or v_ref clipped); "
+    "*v_ref lim*: fraction "
     "where a component of the compensator's v_ref sits at its limit."
 )
 """How each flag of a row is defined."""

@@ -360,16 +360,20 @@ def add_arguments(parser: argparse.ArgumentParser, output: Callable) -> None:
     parser.add_argument("folder", help="folder of robot TOML files")
     output(
         parser, "--out", Output.FOLDER, default="zoo_results",
-        help="folder of the per-run results (default: zoo_results)",
+        help="folder of the per-run results",
     )  # fmt: skip
     output(
         parser, "--page", Output.FILE,
         help="write the table into this RST page's generated block",
     )  # fmt: skip
     parser.add_argument("--duration", type=float, help="cut every run to this length [s]")
-    parser.add_argument("--engines", default=",".join(ENGINES))
-    parser.add_argument("--experiments", default=",".join(EXPERIMENTS))
-    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument(
+        "--engines", default=",".join(ENGINES), help="plants to run, comma-separated"
+    )
+    parser.add_argument(
+        "--experiments", default=",".join(EXPERIMENTS), help="experiments, comma-separated"
+    )
+    parser.add_argument("--workers", type=int, default=1, help="local worker processes")
     parser.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE",
         help="change a scenario key in every run, e.g. --set controller.feedback=balanced "

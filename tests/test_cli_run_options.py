@@ -35,7 +35,7 @@ def scenario_of_run(monkeypatch):
     """The scenario ``run`` would simulate, caught before the simulation."""
     caught = []
 
-    def trap(scenario, out, html=None, observer=None):
+    def trap(scenario, out, html=None, observer=None, eye_view=None):
         caught.append(scenario)
         raise SystemExit(0)
 
@@ -134,6 +134,36 @@ def test_the_verdict_names_the_claim_the_failed_clauses_and_the_rule():
     assert cli._verdict({**summary, "scenario": "my_own"}) is None
 
 
+@pytest.mark.parametrize("options", [[], ["--json"], ["--eye-view", "strip", "--json"]])
+def test_run_prints_its_verdict_first_and_json_only_when_asked(tmp_path, capsys, monkeypatch,
+                                                                options):  # fmt: skip
+    """The printout of a finished run (the run itself replaced by a hand-built summary)."""
+    import json
+
+    summary = {"scenario": "experiment4", "max_abs_error_final_window_px": 0.2,
+               "target_lost_samples": 0, "joint_limit_violation": 0.0,
+               "oscillation_rms_px": 0.0}  # fmt: skip
+    asked = []
+
+    def finished(scenario, out, html=None, observer=None, eye_view=None):
+        asked.append(eye_view)
+        return None, summary
+
+    monkeypatch.setattr("pbvs_pin.experiments.run_scenario", finished)
+    out = tmp_path / "out"
+    assert main(["run", "experiment4", "--out", str(out), *options]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("verdict: experiment4 meets the paper's claim")
+    assert lines[-1].startswith("log, summary (summary.json") and str(out) in lines[-1]
+    if "--json" in options:
+        assert json.loads("\n".join(lines[1:-1])) == summary
+    else:
+        assert len(lines) == 2 and "--json prints it" in lines[-1]
+    assert asked == [options[1] if "--eye-view" in options else None]
+    if "--eye-view" in options:
+        assert lines[-1].endswith(f"robot's-eye view: {out / 'eye_view.png'}")
+
+
 # ---------------------------------------------------------------- list: arms only
 def _urdf(tmp_path, joints: list[tuple[str, str, str]]) -> str:
     links = sorted({name for joint in joints for name in joint[1:]})
@@ -228,13 +258,17 @@ def _run_with_ctrl_c(tmp_path, capsys, delay: float | None) -> str:
         return "finished"
     line = [x for x in err.splitlines() if x.startswith("pbvs-pin:")][-1]
     if not (out / "log.npz").exists():
-        assert line == "pbvs-pin: interrupted" or "nothing was saved" in line
+        assert line.endswith(("nothing was written", "nothing was saved")), line
         return "stopped before the simulation"
     log = RunLog.load(out)
     assert all(len(channel) == len(log["t"]) for channel in log.channels.values())
     assert np.isfinite(log["q"]).all()
     if not log.interrupted:
-        assert line == "pbvs-pin: interrupted" and (out / "summary.json").is_file()
+        assert (out / "summary.json").is_file()
+        assert line.startswith("pbvs-pin: interrupted ") and (
+            f"kept: the log {out / 'log.npz'}, the summary {out / 'summary.json'}" in line
+            or line.endswith("after the outputs were written; nothing was lost")
+        ), line
         return "stopped after the run was saved"
     assert f"t = {log['t'][-1]:.2f} s of {DURATION_S:g} s" in line
     assert not (out / "summary.json").exists()

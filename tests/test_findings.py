@@ -177,3 +177,40 @@ def test_the_report_tables_the_idealised_runs_behind_the_findings():
     )
     assert "| all but no latency | experiment4 | " in text and "0.2 <= 0.1: FAILS |" in text
     assert _idealised_section(None) == ""
+
+
+def test_every_comparison_run_that_fails_its_rule_is_named():
+    """Mode `all` failing Experiment 4 (5.68 against 0.5 px) is named; the own mode is not
+    repeated (the claims line has it); the IBVS baseline and the MuJoCo plant are named too."""
+    reference = [summary(n, final=0.2) for n in EXPERIMENTS]
+    modes = [summary(n, final=0.2, compensation=m) for n in EXPERIMENTS
+             for m in ("off", "platform", "all")]  # fmt: skip
+    modes[-1] = summary("experiment4", final=5.68, compensation="all")
+    text = findings_section(reference, [], [], modes, [])
+    assert "**Comparison runs that fail their experiment's rule**: 1 of 8" in text
+    assert (
+        '- compensation mode `all` in Experiment 4: NOT met by the rule "max abs(e) over the '
+        'last 5 s < 0.5 px": 5.68 px over the last 5 s' in text
+    )
+    classic = [summary("experiment2", final=9.0, law="ibvs")]
+    plants = [summary("experiment1", engine="mujoco", robot="tiago", target_lost_samples=2,
+                      target_lost_first_s=3.0), summary("experiment1", robot="tiago")]  # fmt: skip
+    text = findings_section(reference, [], [], modes, [], classic=classic, plants=plants)
+    assert "1 of 8" not in text and "3 of 10" in text
+    assert "- the classic IBVS baseline in Experiment 2: NOT met by the rule" in text
+    assert "- the MuJoCo plant (tiago) in Experiment 1: NOT met" in text
+    assert "lost 2 from 3.00 s" in text
+    passing = findings_section(reference, [], [], modes[:-1], [])
+    assert "**Comparison runs**: all 7 meet their experiment's rule." in passing
+    assert "fail their experiment's rule" not in passing
+    assert "Comparison runs" not in findings_section(reference, [], [], [], [])
+
+
+def test_reproduce_progress_rows_name_the_plant_and_the_compensation_mode():
+    from pbvs_pin.experiments import progress_row
+
+    s = summary("experiment4", final=5.68, compensation="all", engine="mujoco")
+    row = progress_row(7, 60, s)
+    assert row.startswith("[7/60] mujoco plant, compensation all: | pioneer_cyton | experiment4 |")
+    assert row.endswith(run_row(s))
+    assert "| NOT met (experiment4's rule) | 5.68 |" in row

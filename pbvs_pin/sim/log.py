@@ -56,6 +56,26 @@ if TYPE_CHECKING:
     from pbvs_pin.sim.sensing import Sensing
     from pbvs_pin.sim.setup import Setup
 
+AT_LIMIT = 1.0 - 1e-6
+"""A velocity counts as at its limit from this fraction of the limit on."""
+
+
+def command_limited(scaled: bool, v_ref: np.ndarray, limits: np.ndarray) -> bool:
+    """Whether the velocity limits cut the command (the ``saturated`` channel).
+
+    They cut it when the law scaled ``u`` down, or when a component of ``v_ref`` sits at its
+    limit (the compensator clips ``v_ref`` to the limits, eq. 20): a law whose ``u`` stays
+    inside the limits (the classic IBVS baseline) can still drive ``v_ref`` onto them
+    through the compensation.
+
+    Args:
+        scaled: The law scaled ``u`` down (``ControlOutput.saturated``).
+        v_ref: Velocity reference sent to the robot [m/s, rad/s]. Shape (n,).
+        limits: Velocity limits of the controller's model [m/s, rad/s]. Shape (n,).
+    """
+    return bool(scaled) or bool(np.any(np.abs(v_ref) >= AT_LIMIT * limits))
+
+
 CHANNELS = (
     "t", "xi", "xi_true", "xi_d", "u", "v_ref", "v", "q", "arm", "target", "target_estimate",
     "target_velocity", "target_velocity_estimate", "obstacle_distance", "obstacle_angle",
@@ -293,8 +313,8 @@ class RunRecorder:
             ("target_velocity_estimate", target_velocity),
             ("obstacle_distance", laser[0]), ("obstacle_angle", laser[1]),
             ("storage", output.storage), ("storage_v2", v2), ("nu", output.nu),
-            ("saturated", output.saturated), ("damped", output.damped),
-            ("target_lost", tracker.lost), ("valid", output.valid),
+            ("saturated", command_limited(output.saturated, v_ref, setup.model.velocity_limits)),
+            ("damped", output.damped), ("target_lost", tracker.lost), ("valid", output.valid),
             ("loop_gain", output.loop_gain), ("gain_limited", output.gain_limited),
             ("upright_angle", output.upright_angle), ("predicted", tracker.predicting),
             ("v_measured", self.sensing.v),

@@ -12,8 +12,10 @@ them (:func:`summarize`):
   the transient (:func:`oscillation_rms`);
 - **detection** (a rendered camera): frames in which the target projects inside the image
   but is not detected, and the detection error (detected minus projected) RMS and maximum;
-- **saturation**: the fraction of samples in which the controller scaled ``u`` down to the
-  velocity limits, and the fraction in which some ``v_ref`` component sits at its limit.
+- **saturation**: the fraction of samples in which the velocity limits cut the command (the
+  law scaled ``u`` down, or the compensator clipped ``v_ref``:
+  :func:`pbvs_pin.sim.log.command_limited`), and the fraction in which some ``v_ref``
+  component sits at its limit.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from pbvs_pin.sim.log import RunLog
+from pbvs_pin.sim.log import AT_LIMIT, RunLog
 
 FINAL_WINDOW = 5.0
 """Length [s] of the window at the end of a run over which the final error is taken."""
@@ -36,10 +38,6 @@ OSCILLATION_CUTOFF_HZ = 0.5
 
 OSCILLATION_FLAG_PX = 2.0
 """Oscillation RMS [px] above which a run is flagged as oscillating."""
-
-AT_LIMIT = 1.0 - 1e-6
-"""A velocity counts as at its limit from this fraction of the limit on."""
-
 
 def summarize(log: RunLog) -> dict[str, Any]:
     """Acceptance figures and flags of one run (pixels, metres, radians, seconds).

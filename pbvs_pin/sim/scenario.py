@@ -14,6 +14,7 @@ overrides dotted fields of :meth:`Scenario.to_toml` and parses again.
 
 from __future__ import annotations
 
+import json
 import tomllib
 from collections.abc import Mapping
 from dataclasses import MISSING, dataclass, field, fields, replace
@@ -141,6 +142,17 @@ SCHEMA: dict[str, dict[str, Any]] = {
     **{s.TABLE: {spec.name: spec.default for spec in keys_of(s)} for s in SECTIONS},
 }
 """Every section and key with its default (from the sections' fields). The root is ``""``."""
+
+
+def key_lines() -> list[str]:
+    """Every scenario key as ``dotted.name = default  # meaning`` (default as JSON)."""
+    lines = []
+    for section in (Scenario, *SECTIONS):
+        for spec in keys_of(section):
+            name = f"{section.TABLE}.{spec.name}" if section.TABLE else spec.name
+            default = list(spec.default) if isinstance(spec.default, tuple) else spec.default
+            lines.append(f"{name} = {json.dumps(default)}  # {spec.metadata['doc']}")
+    return lines
 
 
 def obstacle_table(obstacle: CircleObstacle | BoxObstacle) -> dict[str, Any]:
