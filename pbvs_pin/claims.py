@@ -262,3 +262,22 @@ def verdict_text(judgement: dict[str, Any]) -> str:
     """
     head, detail = verdict_parts(judgement)
     return f"{head}: {detail}" if detail else head
+
+
+def verdict_lines(summary: dict) -> str | None:
+    """The two lines ``pbvs-pin run`` prints: the verdict on the paper's claim, and the rule.
+
+    The first names the failed clauses with their figures (every clause when all hold), or
+    why the run is not judged (:func:`pbvs_pin.claims.judge`); the second gives the rule.
+    """
+    judgement = judge(summary)
+    if judgement["rule"] is None:
+        return None
+    head, detail = verdict_parts(judgement)
+    if head == "met":
+        detail = "; ".join(map(clause_text, judgement["clauses"]))
+    said = {"met": "meets", "NOT met": "does NOT meet", "not judged": "is not judged against"}
+    return (
+        f"verdict: {summary['scenario']} {said[head]} the paper's claim "
+        f"({CLAIMS[summary['scenario']].text}): {detail}\nrule: {judgement['rule']}"
+    )

@@ -181,27 +181,6 @@ def _setting(text: str) -> tuple[str, object]:
     return key.strip(), parsed
 
 
-def _verdict(summary: dict) -> str | None:
-    """Two lines: whether a shipped experiment's run meets the paper's claim, and the rule.
-
-    The first names the failed clauses with their figures (every clause when all hold), or
-    why the run is not judged (:func:`pbvs_pin.claims.judge`); the second gives the rule.
-    """
-    from pbvs_pin.claims import CLAIMS, clause_text, judge, verdict_parts
-
-    judgement = judge(summary)
-    if judgement["rule"] is None:
-        return None
-    head, detail = verdict_parts(judgement)
-    if head == "met":
-        detail = "; ".join(map(clause_text, judgement["clauses"]))
-    said = {"met": "meets", "NOT met": "does NOT meet", "not judged": "is not judged against"}
-    return (
-        f"verdict: {summary['scenario']} {said[head]} the paper's claim "
-        f"({CLAIMS[summary['scenario']].text}): {detail}\nrule: {judgement['rule']}"
-    )
-
-
 def _run(args: argparse.Namespace) -> None:
     """Run one scenario, optionally with a live Meshcat view (the run goes on without one)."""
     from pbvs_pin.experiments import run_scenario
@@ -233,7 +212,9 @@ def _run(args: argparse.Namespace) -> None:
         with live:
             print(f"live view: {live.url} (playing at {speed:g}x real time)")
             summary = run_scenario(scenario, out, html, observer=live.show, eye_view=eye)[1]
-    verdict = _verdict(summary)
+    from pbvs_pin.claims import verdict_lines
+
+    verdict = verdict_lines(summary)
     if verdict is not None:
         print(verdict)
     if args.json:

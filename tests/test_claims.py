@@ -174,18 +174,19 @@ def test_summary_json_and_the_terminal_give_the_verdict_of_a_short_run(tmp_path,
     assert (last["threshold"], last["relation"], last["unit"]) == (8.0, "<", "px")
     assert last["holds"] is (last["value"] < 8.0)
     out = capsys.readouterr().out.splitlines()
-    assert out[-2] == (
+    assert out[-3] == (
         "verdict: experiment1 is not judged against the paper's claim (errors ultimately "
         f"bounded, final max |error| < 8 px): {reason}"
     )
-    assert out[-1] == f"rule: {CLAIMS['experiment1'].rule}"
+    assert out[-2] == f"rule: {CLAIMS['experiment1'].rule}"
+    assert out[-1].startswith("log, summary (summary.json")
 
 
 def test_the_docs_verdict_is_a_fresh_runs():
     """docs/scenarios.md quotes the verdict of Stretch RE1's Experiment 2 (60 s, 1-2 min)."""
     from conftest import REPO_ROOT
 
-    from pbvs_pin.cli import _verdict
+    from pbvs_pin.claims import verdict_lines
     from pbvs_pin.experiments import with_robot
     from pbvs_pin.sim.loop import simulate
     from pbvs_pin.sim.metrics import summarize
@@ -193,7 +194,7 @@ def test_the_docs_verdict_is_a_fresh_runs():
 
     robot = str(REPO_ROOT / "robots" / "stretch_re1.toml")
     scenario = with_robot(load_scenario("experiment2"), robot)
-    line = _verdict(summarize(simulate(scenario, progress=False))).split("\n")[0]
+    line = verdict_lines(summarize(simulate(scenario, progress=False))).split("\n")[0]
     assert line.startswith("verdict: experiment2 does NOT meet")
     page = (REPO_ROOT / "docs" / "scenarios.md").read_text()
     assert f"\n{line}\n" in page, f"docs/scenarios.md no longer quotes {line!r}: measure again"

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from conftest import URDF_DIR
 
-from pbvs_pin import cli
 from pbvs_pin.catalogue import chain_joints
+from pbvs_pin.claims import verdict_lines
 from pbvs_pin.cli import main
 from pbvs_pin.interrupts import (
     held_interrupts,
@@ -113,7 +113,7 @@ def test_the_verdict_names_the_claim_the_failed_clauses_and_the_rule():
     summary = {"scenario": "experiment4", "max_abs_error_final_window_px": 0.2,
                "target_lost_samples": 0, "joint_limit_violation": 0.0,
                "oscillation_rms_px": 0.0, "duration_s": 99.98}  # fmt: skip
-    verdict, rule = cli._verdict(summary).split("\n")
+    verdict, rule = verdict_lines(summary).split("\n")
     assert verdict == (
         "verdict: experiment4 meets the paper's claim (errors converge to zero (perfect "
         "knowledge)): last 5 s: 0.2 px < 0.5 px; target lost: 0 samples <= 0 samples; "
@@ -121,17 +121,17 @@ def test_the_verdict_names_the_claim_the_failed_clauses_and_the_rule():
     )
     assert rule.startswith("rule: max abs(e) over the last 5 s < 0.5 px; target never lost")
     summary |= {"max_abs_error_final_window_px": 0.7, "oscillation_rms_px": 3.25}
-    verdict = cli._verdict(summary).split("\n")[0]
+    verdict = verdict_lines(summary).split("\n")[0]
     assert verdict.endswith(
         "does NOT meet the paper's claim (errors converge to zero (perfect knowledge)): "
         "last 5 s: 0.7 px >= 0.5 px; oscillation: 3.25 px >= 3 px"
     )
     summary["duration_s"] = 2.98
-    assert cli._verdict(summary).split("\n")[0].endswith(
+    assert verdict_lines(summary).split("\n")[0].endswith(
         "is not judged against the paper's claim (errors converge to zero (perfect "
         "knowledge)): run logged to 2.98 s, shorter than the rule's 5 s window"
     )
-    assert cli._verdict({**summary, "scenario": "my_own"}) is None
+    assert verdict_lines({**summary, "scenario": "my_own"}) is None
 
 
 @pytest.mark.parametrize("options", [[], ["--json"], ["--eye-view", "strip", "--json"]])
@@ -142,7 +142,7 @@ def test_run_prints_its_verdict_first_and_json_only_when_asked(tmp_path, capsys,
 
     summary = {"scenario": "experiment4", "max_abs_error_final_window_px": 0.2,
                "target_lost_samples": 0, "joint_limit_violation": 0.0,
-               "oscillation_rms_px": 0.0}  # fmt: skip
+               "oscillation_rms_px": 0.0, "duration_s": 60.0}  # fmt: skip
     asked = []
 
     def finished(scenario, out, html=None, observer=None, eye_view=None):
@@ -155,10 +155,11 @@ def test_run_prints_its_verdict_first_and_json_only_when_asked(tmp_path, capsys,
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].startswith("verdict: experiment4 meets the paper's claim")
     assert lines[-1].startswith("log, summary (summary.json") and str(out) in lines[-1]
+    assert lines[1].startswith("rule: ")
     if "--json" in options:
-        assert json.loads("\n".join(lines[1:-1])) == summary
+        assert json.loads("\n".join(lines[2:-1])) == summary
     else:
-        assert len(lines) == 2 and "--json prints it" in lines[-1]
+        assert len(lines) == 3 and "--json prints it" in lines[-1]
     assert asked == [options[1] if "--eye-view" in options else None]
     if "--eye-view" in options:
         assert lines[-1].endswith(f"robot's-eye view: {out / 'eye_view.png'}")

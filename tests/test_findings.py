@@ -213,4 +213,4 @@ def test_reproduce_progress_rows_name_the_plant_and_the_compensation_mode():
     row = progress_row(7, 60, s)
     assert row.startswith("[7/60] mujoco plant, compensation all: | pioneer_cyton | experiment4 |")
     assert row.endswith(run_row(s))
-    assert "| NOT met (experiment4's rule) | 5.68 |" in row
+    assert "| NOT met (experiment4's rule: last 5 s: 5.68 px >= 0.5 px) | 5.68 |" in row
