@@ -231,7 +231,7 @@ def test_equations_are_typeset_offline(site):
 
 QUICK_START = (
     "pip install . && pbvs-pin reproduce --out results\n"
-    "pip install '.[test]' && ruff check pbvs_pin tests examples && python -m pytest -q -n auto --dist loadfile\n"
+    "pip install '.[test,ros]' && ruff check pbvs_pin tests examples && python -m pytest -q -n auto --dist loadfile\n"
 )
 
 

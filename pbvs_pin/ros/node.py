@@ -198,8 +198,13 @@ class ControlNode(Node):
         """One control step: the controller's command, or zero (module docstring)."""
         t = self.now()
         try:
-            if t <= self._t:
-                return  # the clock did not move (or went back: the controller refuses it)
+            if t == self._t:
+                return  # the clock did not move
+            if t < self._t:  # the clock went back (a simulation restarted): start afresh
+                self.get_logger().warning(f"the clock went back from {self._t} s to {t} s")
+                self.controller.reset()
+                self._joints = self._odom = self._laser = None
+                self._frames, self._t = [], -np.inf
             reason = self.stop_reason(t)
             if reason:
                 self.publish_zero(t, reason)

@@ -1,0 +1,235 @@
+"""The controller on ROS 2 across processes: ``pbvs-pin ros control`` and ``pbvs-pin ros sim``.
+
+Needs the ``ros`` extra (``pip install '.[ros]'``): without it the module fails to import,
+it is not skipped. Deselect it only by choice: ``-m 'not ros'``.
+
+One node process serves the whole module (its start, imports and kernels from the cache,
+takes about 15 s): Experiment 1 against the simulated robot first, then the stop cases
+against a stand-in robot played by this process, then SIGINT. Every process runs on a
+``ROS_DOMAIN_ID`` chosen for this test run, with discovery kept to this machine.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import rclpy  # without the ros extra this fails: the module errors, it is not skipped
+import rclpy.time
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, Float64MultiArray
+
+import pbvs_pin
+
+pytestmark = pytest.mark.ros
+
+PERIOD = 0.01  # [s] the controller's period (Experiment 1: 100 Hz)
+SENSOR_TIMEOUT = 0.05  # [s] the node's default sensor_timeout
+DURATION = 6.0  # [s] simulated
+WINDOW_START = 3.0  # [s] the error is judged over [3, 6] s
+ERROR_BOUND = 5.0  # [px] see test_experiment1_holds_the_target_across_processes
+STAND_IN_START = 100.0  # [s] the stand-in robot's clock starts after the simulation's
+
+
+def _environment() -> dict:
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(10 + os.getpid() % 80)  # one per test run
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["MUJOCO_GL"] = env.get("MUJOCO_GL", "egl")
+    return env
+
+
+def _cli(*args: str) -> list[str]:
+    return [sys.executable, "-m", "pbvs_pin.cli", "ros", *args]
+
+
+@pytest.fixture(scope="module")
+def ros_env():
+    env = _environment()
+    saved = {key: os.environ.get(key) for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")}
+    os.environ.update({key: env[key] for key in saved})
+    yield env
+    for key, value in saved.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value
+
+
+@pytest.fixture(scope="module")
+def node(ros_env):
+    """The controller node, following /clock."""
+    process = subprocess.Popen(
+        _cli("control", "experiment1", "--use-sim-time"),
+        env=ros_env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    line = process.stdout.readline()  # printed once the node is built
+    assert "running experiment1" in line, process.stderr.read()
+    yield process
+    if process.poll() is None:
+        process.send_signal(signal.SIGKILL)
+        process.wait(10)
+
+
+def test_experiment1_holds_the_target_across_processes(node, ros_env, tmp_path):
+    """Experiment 1, node and simulated robot in two processes over DDS, 6 s in lockstep.
+
+    The bound: over [3, 6] s, max |xi - xi_d| (true projection, in the simulator) < 5 px.
+    ``simulate()`` on the same scenario (rendered camera, Pinocchio plant, 6 s) gives 0.87 px
+    there; across processes 2.0 px was measured. The difference: the node's step reads the
+    newest joint_states/odom, which may be those of the previous period, and each command acts
+    one DDS hop later; the frames, detector and controller are the same. 5 px is the rule of
+    Experiment 1 (8 px over the last 5 s of 30 s) less a margin, and 2.5 times the measured.
+    """
+    summary_path = tmp_path / "summary.json"
+    started = time.perf_counter()
+    sim = subprocess.run(
+        _cli("sim", "experiment1", "--engine", "pinocchio", "--duration", str(DURATION),
+             "--lockstep", "1", "--wait", "60", "--summary", str(summary_path)),
+        env=ros_env, capture_output=True, text=True, timeout=150,
+    )  # fmt: skip
+    assert sim.returncode == 0, sim.stderr[-2000:]
+    summary = json.loads(summary_path.read_text())
+    t, error = np.array(summary["t"]), np.abs(np.array(summary["error"]))
+    steps = round(DURATION / PERIOD)
+    assert summary["fresh_commands"] >= 0.95 * steps, summary["fresh_commands"]
+    assert error[0].max() > 100.0  # the target starts far from xi_d (150 px): it was servoed
+    held = error[t >= WINDOW_START].max()
+    assert held < ERROR_BOUND, f"max |e| over [3, 6] s: {held:.2f} px"
+    print(f"ROS Experiment 1: {held:.2f} px over [3, 6] s; {time.perf_counter() - started:.0f} s")
+
+
+class StandInRobot:
+    """This process as the robot: /clock, joint_states and odom at every period; moving.
+
+    Its arm and platform report velocities, so the controller's braking command (eq. 20) is
+    not zero before a stop; the commands recorded after each tick are those it answered.
+    """
+
+    def __init__(self) -> None:
+        scenario = pbvs_pin.load_scenario("experiment1")
+        robot = scenario.robot.build(scenario.camera.intrinsics())
+        self.names, self.arm = tuple(robot.arm_joint_names), robot.home_arm
+        self.node = rclpy.create_node("stand_in_robot")
+        self.clock = self.node.create_publisher(Clock, "/clock", 10)
+        self.joints = self.node.create_publisher(JointState, "joint_states", 10)
+        self.odom = self.node.create_publisher(Odometry, "odom", 10)
+        self.estop = self.node.create_publisher(Bool, "estop", 10)
+        self.commands: list[tuple[float, np.ndarray]] = []
+        self.node.create_subscription(Twist, "cmd_vel", self._on_cmd, 50)
+        self.node.create_subscription(
+            Float64MultiArray, "arm_controller/commands", lambda m: None, 50
+        )
+        self.t = STAND_IN_START
+        self._new = False
+
+    def _on_cmd(self, message: Twist) -> None:
+        self.commands.append((self.t, np.array([message.linear.x, message.angular.z])))
+        self._new = True
+
+    def spin(self, seconds: float) -> None:
+        end = time.perf_counter() + seconds
+        while time.perf_counter() < end:
+            rclpy.spin_once(self.node, timeout_sec=0.01)
+
+    def tick(self, joints: bool = True, odom: bool = True, bad: bool = False) -> None:
+        """One period: readings, then the clock; wait (up to 1 s) for the command."""
+        self.t = round(self.t + PERIOD, 6)
+        stamp = rclpy.time.Time(seconds=self.t).to_msg()
+        if joints:
+            rates = [float("nan") if bad else 0.1] + [0.1] * (len(self.names) - 1)
+            message = JointState(name=list(self.names), position=list(self.arm), velocity=rates)
+            message.header.stamp = stamp
+            self.joints.publish(message)
+        if odom:
+            message = Odometry()
+            message.header.stamp = stamp
+            message.pose.pose.orientation.w = 1.0
+            message.twist.twist.linear.x, message.twist.twist.angular.z = 0.1, 0.1
+            self.odom.publish(message)
+        self._new = False
+        self.clock.publish(Clock(clock=stamp))
+        end = time.perf_counter() + 1.0
+        while not self._new and time.perf_counter() < end:
+            rclpy.spin_once(self.node, timeout_sec=0.01)
+
+    def since(self, t: float) -> list[np.ndarray]:
+        return [command for stamp, command in self.commands if stamp >= t - 1e-9]
+
+
+@pytest.fixture(scope="module")
+def stand_in(node, ros_env):
+    rclpy.init()
+    robot = StandInRobot()
+    deadline = time.perf_counter() + 30
+    while not robot.commands and time.perf_counter() < deadline:  # discovery
+        robot.tick()
+    yield robot
+    robot.node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _running(robot: StandInRobot) -> None:
+    """Ten normal periods; the commands at their end are not zero (a stop can be seen)."""
+    start = robot.t
+    for _ in range(10):
+        robot.tick()
+    recent = robot.since(start + 5 * PERIOD)
+    assert recent and all(np.abs(c).max() > 1e-4 for c in recent), recent
+
+
+def _zero_within_three_periods(robot: StandInRobot, trigger: float, ticks: int, **kwargs) -> None:
+    for _ in range(ticks):
+        robot.tick(**kwargs)
+    after = robot.since(trigger + 3 * PERIOD)
+    assert len(after) >= ticks // 2, "too few commands came"
+    assert all(np.all(c == 0.0) for c in after), after
+
+
+def test_stale_odometry_stops_the_commands(stand_in):
+    _running(stand_in)
+    last_odom = stand_in.t
+    _zero_within_three_periods(stand_in, last_odom + SENSOR_TIMEOUT, 15, odom=False)
+
+
+def test_stale_joint_states_stop_the_commands(stand_in):
+    _running(stand_in)
+    last = stand_in.t
+    _zero_within_three_periods(stand_in, last + SENSOR_TIMEOUT, 15, joints=False)
+
+
+def test_bad_input_stops_the_commands_and_the_node_goes_on(stand_in, node):
+    _running(stand_in)
+    _zero_within_three_periods(stand_in, stand_in.t, 10, bad=True)
+    assert node.poll() is None
+    _running(stand_in)  # the next good reading clears it
+
+
+def test_estop_stops_the_commands_until_released(stand_in):
+    _running(stand_in)
+    stand_in.estop.publish(Bool(data=True))
+    stand_in.spin(0.1)
+    _zero_within_three_periods(stand_in, stand_in.t, 10)
+    stand_in.estop.publish(Bool(data=False))
+    stand_in.spin(0.1)
+    _running(stand_in)
+
+
+def test_sigint_publishes_zero_and_exits(stand_in, node):
+    _running(stand_in)
+    count = len(stand_in.commands)
+    node.send_signal(signal.SIGINT)
+    stand_in.spin(2.0)
+    assert node.wait(15) == 0
+    last = stand_in.commands[count:]
+    assert last and np.all(last[-1][1] == 0.0), last
