@@ -233,3 +233,54 @@ def test_sigint_publishes_zero_and_exits(stand_in, node):
     assert node.wait(15) == 0
     last = stand_in.commands[count:]
     assert last and np.all(last[-1][1] == 0.0), last
+
+
+def test_without_ros_the_command_says_how_to_install(monkeypatch, capsys):
+    from pbvs_pin import cli
+    from pbvs_pin.ros import commands
+
+    real = commands.importlib.import_module
+
+    def missing(name, *args):
+        if name.startswith("pbvs_pin.ros."):
+            raise ImportError("No module named 'rclpy'")
+        return real(name, *args)
+
+    monkeypatch.setattr(commands.importlib, "import_module", missing)
+    assert cli.main(["ros", "sim", "experiment1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "pip install 'pbvs_pin[ros]'" in err, err
+
+
+def test_message_conventions():
+    """Stamps, the laser's clockwise angle, odometry's yaw, bgr8 images, CameraInfo's K."""
+    from sensor_msgs.msg import CameraInfo, Image, LaserScan
+
+    from pbvs_pin.exceptions import ControlInputError, NonFiniteValue
+    from pbvs_pin.ros import messages
+
+    assert messages.seconds(messages.stamp(12.345678901)) == pytest.approx(12.345678901, abs=1e-9)
+    scan = LaserScan(angle_min=-1.0, angle_increment=0.5, range_min=0.1, range_max=5.0)
+    scan.ranges = [3.0, 9.0, 2.0, float("nan"), 0.05]  # angles -1, -0.5, 0, 0.5, 1 rad
+    assert messages.nearest_return(scan) == (2.0, -0.0)
+    scan.ranges = [3.0, 9.0, 4.0, 1.5, 8.0]  # nearest at +0.5 rad (left): alpha = -0.5 rad
+    assert messages.nearest_return(scan) == (1.5, -0.5)
+    odom = messages.Odometry()
+    odom.pose.pose.orientation.z, odom.pose.pose.orientation.w = np.sin(0.15), np.cos(0.15)
+    odom.twist.twist.linear.x, odom.twist.twist.angular.z = 0.2, -0.1
+    planar, velocity = messages.platform_reading(odom, 2)
+    assert planar[2] == pytest.approx(0.3) and velocity.tolist() == [0.2, -0.1]
+    odom.twist.twist.linear.x = float("nan")
+    with pytest.raises(NonFiniteValue):
+        messages.platform_reading(odom, 2)
+    pixel = np.array([[[10, 20, 30], [40, 50, 60]]], dtype=np.uint8)  # one row, two pixels
+    bgr = Image(height=1, width=2, encoding="bgr8", step=6, data=pixel[:, :, ::-1].tobytes())
+    assert np.array_equal(messages.image_array(bgr), pixel)
+    with pytest.raises(ControlInputError, match="encoding"):
+        messages.image_array(Image(height=1, width=2, encoding="mono8", step=2, data=bytes(2)))
+    camera = pbvs_pin.CameraIntrinsics()
+    info = messages.camera_info(0.0, camera, "camera_optical_frame")
+    messages.check_camera_info(info, camera)  # its own intrinsics pass
+    info = CameraInfo(height=582, width=628, k=[610.0, 0, 314, 0, 610.0, 291, 0, 0, 1])
+    with pytest.raises(ControlInputError, match=r"camera_info\.k"):
+        messages.check_camera_info(info, camera)

@@ -5,20 +5,16 @@ with ``use_sim_time``) the node steps the public controller with what arrived si
 previous step, and publishes its velocity references. Topics (relative names, so a namespace
 or a remap moves them):
 
-========================  ==================================  ==================================
-topic                     type                                use
-========================  ==================================  ==================================
-``joint_states``          ``sensor_msgs/JointState``          arm positions and rates, by name
-``odom``                  ``nav_msgs/Odometry``               platform pose and velocity
-``scan``                  ``sensor_msgs/LaserScan``           nearest obstacle ``(d, alpha)``
-``camera/image_raw``      ``sensor_msgs/Image``               the detector finds the spheres;
-                                                              ``header.stamp``: capture time
-``camera/camera_info``    ``sensor_msgs/CameraInfo``          checked against the intrinsics
-``estop``                 ``std_msgs/Bool``                   true: zero commands until false
-``cmd_vel``               ``geometry_msgs/Twist``             platform velocity references
-``arm_controller/commands``  ``std_msgs/Float64MultiArray``   arm rates, ``arm_joints`` order
-``diagnostics``           ``diagnostic_msgs/DiagnosticArray`` error, seen, lost, frame age, ...
-========================  ==================================  ==================================
+- subscribed: ``joint_states`` (``sensor_msgs/JointState``: arm positions and rates, by
+  name), ``odom`` (``nav_msgs/Odometry``: platform pose and velocity), ``scan``
+  (``sensor_msgs/LaserScan``: the nearest obstacle ``(d, alpha)``), ``camera/image_raw``
+  (``sensor_msgs/Image``: the detector finds the spheres; ``header.stamp`` is the capture
+  time), ``camera/camera_info`` (``sensor_msgs/CameraInfo``: checked against the
+  controller's intrinsics), ``estop`` (``std_msgs/Bool``: true stops until false);
+- published: ``cmd_vel`` (``geometry_msgs/Twist``: platform velocity references),
+  ``arm_controller/commands`` (``std_msgs/Float64MultiArray``: arm rates in the order of
+  the ``arm_joints`` parameter), ``diagnostics`` (``diagnostic_msgs/DiagnosticArray``:
+  feature error, seen, lost, frame age, saturation, or why the commands are zero).
 
 Safety: the published commands are exactly zero at the next control step (within one
 period) when ``joint_states`` or ``odom`` is older than ``sensor_timeout`` [s] (or never
