@@ -98,7 +98,7 @@ def test_the_index_leads_to_every_section():
     for page in (
         "getting_started", "gallery", "own_robot", "controller", "scenarios", "faults",
         "analysis", "sweeps", "theory", "design", "style", "api", "internals",
-        "bad_input", "zoo", "rendered_camera", "mutation",
+        "bad_input", "zoo", "rendered_camera", "mutation", "ros2",
     ):  # fmt: skip
         assert re.search(rf"^   {page}$", index, re.M), page
 

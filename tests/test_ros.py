@@ -34,7 +34,7 @@ PERIOD = 0.01  # [s] the controller's period (Experiment 1: 100 Hz)
 SENSOR_TIMEOUT = 0.05  # [s] the node's default sensor_timeout
 DURATION = 6.0  # [s] simulated
 WINDOW_START = 3.0  # [s] the error is judged over [3, 6] s
-ERROR_BOUND = 5.0  # [px] see test_experiment1_holds_the_target_across_processes
+ERROR_BOUND = 8.0  # [px] Experiment 1's rule; see test_experiment1_holds_the_target_...
 STAND_IN_START = 100.0  # [s] the stand-in robot's clock starts after the simulation's
 
 
@@ -84,12 +84,13 @@ def node(ros_env):
 def test_experiment1_holds_the_target_across_processes(node, ros_env, tmp_path):
     """Experiment 1, node and simulated robot in two processes over DDS, 6 s in lockstep.
 
-    The bound: over [3, 6] s, max |xi - xi_d| (true projection, in the simulator) < 5 px.
-    ``simulate()`` on the same scenario (rendered camera, Pinocchio plant, 6 s) gives 0.87 px
-    there; across processes 2.0 px was measured. The difference: the node's step reads the
-    newest joint_states/odom, which may be those of the previous period, and each command acts
-    one DDS hop later; the frames, detector and controller are the same. 5 px is the rule of
-    Experiment 1 (8 px over the last 5 s of 30 s) less a margin, and 2.5 times the measured.
+    The bound: over [3, 6] s, max |xi - xi_d| (true projection, in the simulator) < 8 px,
+    Experiment 1's rule (the report's, on the last 5 s). ``simulate()`` on the same scenario
+    (rendered camera, Pinocchio plant, 6 s) gives 0.87 px there; across processes 2.0 and
+    3.2 px were measured in two runs. The difference: the node's step reads the newest
+    joint_states/odom, which may be those of the period before (which one arrives first
+    varies from run to run), and each command acts one DDS hop later; the frames, detector
+    and controller are the same. A lost target or an oscillation breaks the bound.
     """
     summary_path = tmp_path / "summary.json"
     started = time.perf_counter()
@@ -284,3 +285,15 @@ def test_message_conventions():
     info = CameraInfo(height=582, width=628, k=[610.0, 0, 314, 0, 610.0, 291, 0, 0, 1])
     with pytest.raises(ControlInputError, match=r"camera_info\.k"):
         messages.check_camera_info(info, camera)
+
+
+def test_the_simulated_robot_stops_when_commands_stop_coming():
+    """A controller killed with SIGKILL sends nothing: past the timeout the robot gets zero."""
+    from pbvs_pin.ros.sim import applied_command
+
+    base, arm = (1.0, np.array([0.2, -0.1])), (1.0, np.array([0.3, 0.0, -0.3]))
+    assert applied_command(1.05, base, arm, 0.1, 2, 5).tolist() == [0.2, -0.1, 0.3, 0.0, -0.3]
+    assert applied_command(1.11, base, arm, 0.1, 2, 5).tolist() == [0.0] * 5
+    assert applied_command(1.05, None, arm, 0.1, 2, 5).tolist() == [0.0, 0.0, 0.3, 0.0, -0.3]
+    bad = (1.0, np.array([np.nan, 0.1]))
+    assert applied_command(1.05, bad, None, 0.1, 2, 5).tolist() == [0.0] * 5

@@ -48,6 +48,26 @@ SUMMARY_RATE = 10.0
 """Rows per simulated second [Hz] of the true feature error in the summary."""
 
 
+Received = tuple[float, np.ndarray] | None
+"""A command and the simulated time [s] it arrived at; None before the first."""
+
+
+def applied_command(
+    t: float, base: Received, arm: Received, timeout: float, n_base: int, n: int
+) -> np.ndarray:
+    """The velocity references a robot applies at ``t`` [s], shape (n,).
+
+    The newest platform and arm commands; each is replaced by zero when it is older than
+    ``timeout`` [s], has not come, or is not finite (the robot's own command timeout).
+    """
+    v_ref = np.zeros(n)
+    for received, part in ((base, slice(0, n_base)), (arm, slice(n_base, n))):
+        if received is not None and t - received[0] <= timeout:
+            if np.all(np.isfinite(received[1])):
+                v_ref[part] = received[1]
+    return v_ref
+
+
 class SimRobot(Node):
     """The scenario's robot as a ROS 2 robot (module docstring).
 
@@ -124,15 +144,15 @@ class SimRobot(Node):
                 executor.spin_once(timeout_sec=remaining)
 
     def command(self) -> np.ndarray:
-        """The velocity references applied now: the newest commands, zero when too old."""
-        v_ref = np.zeros(self.model.n)
-        for received, part in ((self.base_command, slice(0, self.n_base)),
-                               (self.arm_command, slice(self.n_base, None))):  # fmt: skip
-            if received is not None and self.t - received[0] <= self.command_timeout:
-                values = received[1]
-                if np.all(np.isfinite(values)):
-                    v_ref[part] = values
-        return v_ref
+        """The velocity references applied now (:func:`applied_command`)."""
+        return applied_command(
+            self.t,
+            self.base_command,
+            self.arm_command,
+            self.command_timeout,
+            self.n_base,
+            self.model.n,
+        )
 
     def publish_sensors(self, step: int) -> None:
         """The encoders, odometry, the scan and image when due, then ``/clock``."""
