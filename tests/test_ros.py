@@ -19,14 +19,10 @@ import time
 import numpy as np
 import pytest
 import rclpy  # without the ros extra this fails: the module errors, it is not skipped
-import rclpy.time
-from geometry_msgs.msg import Twist
-from nav_msgs.msg import Odometry
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, Float64MultiArray
+from std_msgs.msg import Bool
 
 import pbvs_pin
+from pbvs_pin.ros.stand_in import StandInRobot
 
 pytestmark = pytest.mark.ros
 
@@ -110,68 +106,10 @@ def test_experiment1_holds_the_target_across_processes(node, ros_env, tmp_path):
     print(f"ROS Experiment 1: {held:.2f} px over [3, 6] s; {time.perf_counter() - started:.0f} s")
 
 
-class StandInRobot:
-    """This process as the robot: /clock, joint_states and odom at every period; moving.
-
-    Its arm and platform report velocities, so the controller's braking command (eq. 20) is
-    not zero before a stop; the commands recorded after each tick are those it answered.
-    """
-
-    def __init__(self) -> None:
-        scenario = pbvs_pin.load_scenario("experiment1")
-        robot = scenario.robot.build(scenario.camera.intrinsics())
-        self.names, self.arm = tuple(robot.arm_joint_names), robot.home_arm
-        self.node = rclpy.create_node("stand_in_robot")
-        self.clock = self.node.create_publisher(Clock, "/clock", 10)
-        self.joints = self.node.create_publisher(JointState, "joint_states", 10)
-        self.odom = self.node.create_publisher(Odometry, "odom", 10)
-        self.estop = self.node.create_publisher(Bool, "estop", 10)
-        self.commands: list[tuple[float, np.ndarray]] = []
-        self.node.create_subscription(Twist, "cmd_vel", self._on_cmd, 50)
-        self.node.create_subscription(
-            Float64MultiArray, "arm_controller/commands", lambda m: None, 50
-        )
-        self.t = STAND_IN_START
-        self._new = False
-
-    def _on_cmd(self, message: Twist) -> None:
-        self.commands.append((self.t, np.array([message.linear.x, message.angular.z])))
-        self._new = True
-
-    def spin(self, seconds: float) -> None:
-        end = time.perf_counter() + seconds
-        while time.perf_counter() < end:
-            rclpy.spin_once(self.node, timeout_sec=0.01)
-
-    def tick(self, joints: bool = True, odom: bool = True, bad: bool = False) -> None:
-        """One period: readings, then the clock; wait (up to 1 s) for the command."""
-        self.t = round(self.t + PERIOD, 6)
-        stamp = rclpy.time.Time(seconds=self.t).to_msg()
-        if joints:
-            rates = [float("nan") if bad else 0.1] + [0.1] * (len(self.names) - 1)
-            message = JointState(name=list(self.names), position=list(self.arm), velocity=rates)
-            message.header.stamp = stamp
-            self.joints.publish(message)
-        if odom:
-            message = Odometry()
-            message.header.stamp = stamp
-            message.pose.pose.orientation.w = 1.0
-            message.twist.twist.linear.x, message.twist.twist.angular.z = 0.1, 0.1
-            self.odom.publish(message)
-        self._new = False
-        self.clock.publish(Clock(clock=stamp))
-        end = time.perf_counter() + 1.0
-        while not self._new and time.perf_counter() < end:
-            rclpy.spin_once(self.node, timeout_sec=0.01)
-
-    def since(self, t: float) -> list[np.ndarray]:
-        return [command for stamp, command in self.commands if stamp >= t - 1e-9]
-
-
 @pytest.fixture(scope="module")
 def stand_in(node, ros_env):
     rclpy.init()
-    robot = StandInRobot()
+    robot = StandInRobot(pbvs_pin.load_scenario("experiment1"), STAND_IN_START, PERIOD)
     deadline = time.perf_counter() + 30
     while not robot.commands and time.perf_counter() < deadline:  # discovery
         robot.tick()
