@@ -11,6 +11,7 @@ against a stand-in robot played by this process, then SIGINT. Every process runs
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -92,7 +93,8 @@ def test_experiment1_holds_the_target_across_processes(node, ros_env, tmp_path):
     started = time.perf_counter()
     sim = subprocess.run(
         _cli("sim", "experiment1", "--engine", "pinocchio", "--duration", str(DURATION),
-             "--lockstep", "1", "--wait", "60", "--summary", str(summary_path)),
+             "--lockstep", "1", "--wait", "60", "--summary", str(summary_path),
+             "--bag", str(tmp_path / "bag")),
         env=ros_env, capture_output=True, text=True, timeout=150,
     )  # fmt: skip
     assert sim.returncode == 0, sim.stderr[-2000:]
@@ -104,6 +106,38 @@ def test_experiment1_holds_the_target_across_processes(node, ros_env, tmp_path):
     held = error[t >= WINDOW_START].max()
     assert held < ERROR_BOUND, f"max |e| over [3, 6] s: {held:.2f} px"
     print(f"ROS Experiment 1: {held:.2f} px over [3, 6] s; {time.perf_counter() - started:.0f} s")
+    _check_bag(tmp_path / "bag", summary, steps)
+
+
+def _check_bag(bag, summary: dict, steps: int) -> None:
+    """rosbags reads the bag back: every topic with its standard type, one reading per step,
+    and the platform commands it holds are those the plant applied (the summary's)."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    expected = {
+        "/joint_states": "sensor_msgs/msg/JointState", "/odom": "nav_msgs/msg/Odometry",
+        "/clock": "rosgraph_msgs/msg/Clock", "/cmd_vel": "geometry_msgs/msg/Twist",
+        "/arm_controller/commands": "std_msgs/msg/Float64MultiArray",
+        "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+        "/camera/image_raw": "sensor_msgs/msg/Image",
+        "/camera/camera_info": "sensor_msgs/msg/CameraInfo",
+    }  # fmt: skip
+    try:
+        with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_KILTED)) as reader:
+            found = {c.topic: (c.msgtype, c.msgcount) for c in reader.connections}
+            assert {topic: kind for topic, (kind, _) in found.items()} == expected
+            assert found["/joint_states"][1] == steps
+            assert found["/cmd_vel"][1] == summary["commands_received"]
+            commands = {}
+            cmd_vel = [c for c in reader.connections if c.topic == "/cmd_vel"]
+            for connection, stamp, raw in reader.messages(connections=cmd_vel):
+                message = reader.deserialize(raw, connection.msgtype)
+                commands[round(stamp * 1e-9, 6)] = [message.linear.x, message.angular.z]
+        for t, v_ref in zip(summary["t"][1:], summary["v_ref"][1:], strict=True):
+            assert np.allclose(commands[t], v_ref[:2], atol=1e-6), t
+    finally:
+        shutil.rmtree(bag, ignore_errors=True)  # 30 images a second: 200 MB
 
 
 @pytest.fixture(scope="module")

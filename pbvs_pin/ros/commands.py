@@ -104,6 +104,9 @@ def add_arguments(parser: argparse.ArgumentParser, output: Callable, scenario_of
         default=0.0,
         help="wait up to this long [s] for a controller node before starting",
     )
+    sim.add_argument(
+        "--bag", help="record every topic into this new folder: a rosbag2 bag, MCAP storage"
+    )
     output(sim, "--summary", Output.FILE, help="write the true feature error here (JSON)")
     sim.add_argument("--ros-args", **ros_args)
     sim.set_defaults(handler=partial(_sim, scenario_of=scenario_of))
@@ -176,6 +179,8 @@ def _sim(args: argparse.Namespace, scenario_of: Callable) -> None:
             f"{scenario.duration:g} s",
             flush=True,
         )
+        if args.bag:
+            node.record(args.bag)
         if args.wait > 0 and not node.wait_for_controller(args.wait):
             node.get_logger().warning(f"no controller node after {args.wait:g} s; starting")
         summary = node.run(scenario.duration)

@@ -111,14 +111,42 @@ class SimRobot(Node):
         self.arm_command: tuple[float, np.ndarray] | None = None
         self.commands_received = 0
         self.fresh_commands = 0
+        self.bag = None
         self.in_flight: deque[tuple[float, Image]] = deque()  # (delivery time, image)
         self.rows: dict[str, list] = {"t": [], "error": [], "v_ref": []}
 
+    def record(self, path: str) -> None:
+        """Write every message sent and received (and the node's diagnostics) into a bag.
+
+        Raises:
+            OutputError: If ``path`` exists.
+        """
+        from diagnostic_msgs.msg import DiagnosticArray
+
+        from pbvs_pin.ros.bag import BagRecorder
+
+        self.bag = BagRecorder(path)
+        self.create_subscription(DiagnosticArray, "diagnostics", self._on_other, 10)
+
+    def send(self, publisher, message: object) -> None:
+        """Publish, and record in the bag at the simulated time."""
+        publisher.publish(message)
+        if self.bag is not None:
+            self.bag.write(publisher.topic_name, message, self.t)
+
+    def _on_other(self, message: object) -> None:
+        if self.bag is not None:
+            self.bag.write("/diagnostics", message, self.t)
+
     def _on_cmd_vel(self, message: Twist) -> None:
+        if self.bag is not None:
+            self.bag.write("/cmd_vel", message, self.t)
         self.base_command = (self.t, messages.twist_velocity(message, self.n_base))
         self.commands_received += 1
 
     def _on_arm(self, message: Float64MultiArray) -> None:
+        if self.bag is not None:
+            self.bag.write("/arm_controller/commands", message, self.t)
         data = np.asarray(message.data, dtype=float)
         if data.shape == (self.n_arm,) and np.all(np.isfinite(data)):
             self.arm_command = (self.t, data)
@@ -160,12 +188,13 @@ class SimRobot(Node):
         sensing.read(t)
         q, v = sensing.q, sensing.v
         arm = self.model.arm_positions(q)
-        self.joints.publish(
-            messages.joint_state(t, self.model.arm_joint_names, arm, v[self.n_base :])
+        self.send(
+            self.joints, messages.joint_state(t, self.model.arm_joint_names, arm, v[self.n_base :])
         )
         planar = planar_pose(self.model, q)
-        self.odom.publish(
-            messages.odometry(t, planar, v[: self.n_base], frames.ODOM, frames.DRIVE_FOOTPRINT)
+        self.send(
+            self.odom,
+            messages.odometry(t, planar, v[: self.n_base], frames.ODOM, frames.DRIVE_FOOTPRINT),
         )
         scenario = self.scenario
         if setup.obstacles and step % max(1, round(1.0 / (scenario.laser.rate * self.period))) == 0:
@@ -174,8 +203,9 @@ class SimRobot(Node):
             pose = robot.base_pose(true_q)
             yaw = float(np.arctan2(pose.rotation[1, 0], pose.rotation[0, 0]))
             ranges = laser.scan(setup.obstacles, *pose.translation[:2], yaw, sensing.laser_rng)
-            self.scan.publish(
-                messages.laser_scan(t, ranges, laser.field_of_view, laser.max_range, frames.LASER)
+            self.send(
+                self.scan,
+                messages.laser_scan(t, ranges, laser.field_of_view, laser.max_range, frames.LASER),
             )
         sensor = setup.sensor
         if sensor.capture_due(t):
@@ -186,12 +216,11 @@ class SimRobot(Node):
                                    messages.image(t, rgb, frames.CAMERA_OPTICAL)))  # fmt: skip
         while self.in_flight and self.in_flight[0][0] <= t + 1e-9:
             image = self.in_flight.popleft()[1]
-            self.info.publish(
-                messages.camera_info(messages.seconds(image.header.stamp), self.model.camera,
-                                     frames.CAMERA_OPTICAL)
-            )  # fmt: skip
-            self.image.publish(image)
-        self.clock.publish(Clock(clock=messages.stamp(t)))  # last: the readings of t are out
+            capture = messages.seconds(image.header.stamp)
+            info = messages.camera_info(capture, self.model.camera, frames.CAMERA_OPTICAL)
+            self.send(self.info, info)
+            self.send(self.image, image)
+        self.send(self.clock, Clock(clock=messages.stamp(t)))  # last: the readings of t are out
 
     def true_error(self) -> np.ndarray:
         """``xi - xi_d`` [px] of the true camera pose and target (eq. 2). Shape (r,)."""
@@ -242,6 +271,8 @@ class SimRobot(Node):
                     self.setup.plant.step(v_ref)
         finally:
             executor.remove_node(self)
+            if self.bag is not None:
+                self.bag.close()
         self.fresh_commands = fresh
         return self.summary(wallclock.perf_counter() - started)
 
