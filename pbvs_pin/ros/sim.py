@@ -199,10 +199,7 @@ class SimRobot(Node):
         scenario = self.scenario
         if setup.obstacles and step % max(1, round(1.0 / (scenario.laser.rate * self.period))) == 0:
             laser = setup.laser
-            robot, true_q = self.robot, setup.plant.q
-            pose = robot.base_pose(true_q)
-            yaw = float(np.arctan2(pose.rotation[1, 0], pose.rotation[0, 0]))
-            ranges = laser.scan(setup.obstacles, *pose.translation[:2], yaw, sensing.laser_rng)
+            ranges = sensing.laser_ranges()  # as simulate() reads it: from the laser frame
             self.send(
                 self.scan,
                 messages.laser_scan(t, ranges, laser.field_of_view, laser.max_range, frames.LASER),
