@@ -198,6 +198,26 @@ def test_estop_stops_the_commands_until_released(stand_in):
     _running(stand_in)
 
 
+def test_scenario_keys_are_ros_parameters(stand_in):
+    """``-p estimator.hold:=0.7`` changes the controller's settings; an unknown key is refused."""
+    from rclpy.parameter import Parameter
+
+    from pbvs_pin.exceptions import ScenarioError
+    from pbvs_pin.ros.node import ControlNode
+
+    scenario = pbvs_pin.load_scenario("experiment1")
+    assert scenario.estimator.hold != 0.7
+    given = [Parameter("estimator.hold", value=0.7), Parameter("sensor_timeout", value=0.08)]
+    control = ControlNode(scenario, given)
+    try:
+        assert control.controller.settings.estimator.hold == 0.7
+        assert control.sensor_timeout == 0.08
+    finally:
+        control.destroy_node()
+    with pytest.raises(ScenarioError, match=r"estimator\.nonsense"):
+        ControlNode(scenario, [Parameter("estimator.nonsense", value=1.0)])
+
+
 def test_sigint_publishes_zero_and_exits(stand_in, node):
     _running(stand_in)
     count = len(stand_in.commands)

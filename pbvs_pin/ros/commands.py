@@ -144,16 +144,13 @@ def _control(args: argparse.Namespace, scenario_of: Callable) -> None:
     """Run the node until Ctrl-C or SIGTERM."""
     node_module = ros_module("node")
     scenario = control_scenario(args, scenario_of)
-    from pbvs_pin.controller import Controller
-
-    controller = Controller.from_scenario(scenario)  # compiles (or loads) the kernels first
     rclpy = _init(args.ros_args)
     from rclpy.parameter import Parameter
 
     overrides = [Parameter("use_sim_time", value=True)] if args.use_sim_time else []
     node = None
     try:
-        node = node_module.ControlNode(scenario, controller, overrides)
+        node = node_module.ControlNode(scenario, overrides, announce=True)
         print(
             f"pbvs-pin ros control: {node.get_fully_qualified_name()} running "
             f"{scenario.name} at {1 / node.controller.period:g} Hz",

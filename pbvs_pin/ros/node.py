@@ -74,33 +74,57 @@ def arm_order(names: list[str], arm_joints: tuple[str, ...]) -> np.ndarray:
     return np.array([arm_joints.index(name) for name in names], dtype=int)
 
 
+def scenario_keys(node: Node) -> dict[str, object]:
+    """The scenario keys given as ROS parameters at start, with their values.
+
+    A scenario key is a dotted name, e.g. ``estimator.hold``.
+    """
+    names = node.list_parameters([], 0).names
+    return {
+        name: node.get_parameter(name).value
+        for name in names
+        if "." in name and not name.startswith("qos_overrides.")
+    }
+
+
 class ControlNode(Node):
     """The controller as a ROS 2 node (module docstring).
 
     Parameters (ROS): ``arm_joints`` (string array, the order of the arm command; the arm's
-    joints by default), ``sensor_timeout`` [s], and ``use_sim_time``.
+    joints by default), ``sensor_timeout`` [s], ``use_sim_time``, and any scenario key by
+    its dotted name (``-p estimator.hold:=0.5``), applied to the scenario at start.
 
     Args:
         scenario: Gives the robot, the controller's settings and the detector
             (``camera.detector``).
-        controller: The controller (built from the scenario when None).
         parameter_overrides: ROS parameters set at start (e.g. ``use_sim_time``).
+        announce: Say on stderr when the controller's kernels are compiled.
+
+    Raises:
+        ScenarioError: If a scenario key given as a parameter is not one, or its value is bad.
     """
 
     def __init__(
         self,
         scenario: Scenario,
-        controller: Controller | None = None,
         parameter_overrides: list | None = None,
+        announce: bool = False,
     ) -> None:
-        super().__init__("pbvs_pin_controller", parameter_overrides=parameter_overrides or [])
-        self.controller = controller or Controller.from_scenario(scenario, announce=False)
+        super().__init__(
+            "pbvs_pin_controller",
+            parameter_overrides=parameter_overrides or [],
+            automatically_declare_parameters_from_overrides=True,
+        )
+        keys = scenario_keys(self)
+        scenario = scenario.with_values(**keys) if keys else scenario
+        self.scenario = scenario
+        self.controller = Controller.from_scenario(scenario, announce=announce)
         model = self.controller.model
         self.model, self.n_base = model, model.n_base
         self.arm_joints = tuple(model.arm_joint_names)
-        names = self.declare_parameter("arm_joints", list(self.arm_joints)).value
+        names = self._parameter("arm_joints", list(self.arm_joints))
         self.order = arm_order(list(names), self.arm_joints)
-        self.sensor_timeout = float(self.declare_parameter("sensor_timeout", SENSOR_TIMEOUT).value)
+        self.sensor_timeout = float(self._parameter("sensor_timeout", SENSOR_TIMEOUT))
         self.detector = detector_from(scenario.camera.detector, model.camera)
         self.diameter = scenario.target.diameter
         self._joints: tuple[float, np.ndarray, np.ndarray] | None = None  # (arrival, pos, vel)
@@ -122,6 +146,12 @@ class ControlNode(Node):
         self.create_subscription(CameraInfo, "camera/camera_info", self._on_camera_info, 5)
         self.create_subscription(Bool, "estop", self._on_estop, 10)
         self.create_timer(self.controller.period, self.step)
+
+    def _parameter(self, name: str, default: object) -> object:
+        """A ROS parameter's value, declared with ``default`` unless given at start."""
+        if self.has_parameter(name):
+            return self.get_parameter(name).value
+        return self.declare_parameter(name, default).value
 
     def now(self) -> float:
         """The node's time [s] (``/clock`` with ``use_sim_time``)."""
