@@ -41,6 +41,7 @@ from pbvs_pin.interrupts import (
 )
 from pbvs_pin.outputs import Output, check_output, replace_run_folder
 from pbvs_pin.report import ENGINE_ROBOTS
+from pbvs_pin.ros.commands import add_arguments as ros_arguments
 from pbvs_pin.validation import positive_number
 from pbvs_pin.zoo import add_arguments as zoo_arguments
 from pbvs_pin.zoo import command as zoo_command
@@ -528,6 +529,8 @@ def build_parser() -> argparse.ArgumentParser:
     zoo = commands.add_parser("zoo", help="the four experiments on every robot file of a folder")
     zoo_arguments(zoo, output_option)
     zoo.set_defaults(handler=_zoo)
+    ros = commands.add_parser("ros", help="the controller as a ROS 2 node; a simulated ROS robot")
+    ros_arguments(ros, output_option, _run_scenario)
     return parser
 
 

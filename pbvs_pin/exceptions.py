@@ -303,6 +303,20 @@ class RenderingUnavailable(PbvsError):
     """The rendered camera cannot draw: no offscreen OpenGL context, or nothing to draw."""
 
 
+class RosUnavailable(PbvsError):
+    """ROS 2's Python client cannot be imported: the ``ros`` extra is not installed."""
+
+    def __init__(self, problem: str) -> None:
+        """Say what failed and how to install the extra.
+
+        Args:
+            problem: The import error's message.
+        """
+        super().__init__(
+            f"ROS 2 is not available ({problem}); install it with pip install 'pbvs_pin[ros]'"
+        )
+
+
 class UsageError(PbvsError):
     """Command-line options that contradict each other, or one that needs another."""
 

@@ -23,3 +23,6 @@ CAMERA_OPTICAL = "camera_optical_frame"
 
 LASER = "laser_link"
 """Default name of the platform's 2D laser rangefinder frame, if the platform has one."""
+
+ODOM = "odom"
+"""The odometry's fixed frame (REP-105): the platform pose of ``nav_msgs/Odometry`` is in it."""

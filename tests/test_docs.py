@@ -102,7 +102,7 @@ def test_the_index_leads_to_every_section():
     for page in (
         "getting_started", "gallery", "own_robot", "controller", "scenarios", "faults",
         "analysis", "sweeps", "theory", "design", "style", "api", "internals",
-        "bad_input", "zoo", "rendered_camera", "mutation",
+        "bad_input", "zoo", "rendered_camera", "mutation", "ros2",
     ):  # fmt: skip
         assert re.search(rf"^   {page}$", index, re.M), page
 
@@ -235,7 +235,7 @@ def test_equations_are_typeset_offline(site):
 
 QUICK_START = (
     "pip install . && pbvs-pin reproduce --out results\n"
-    "pip install '.[test]' && ruff check pbvs_pin tests examples && python -m pytest -q -n auto --dist loadfile\n"
+    "pip install '.[test,ros]' && ruff check pbvs_pin tests examples && python -m pytest -q -n auto --dist loadfile\n"
 )
 
 
