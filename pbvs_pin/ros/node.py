@@ -40,6 +40,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState, LaserScan
 from std_msgs.msg import Bool, Float64MultiArray
 
 from pbvs_pin.camera_frame import CameraFrame
+from pbvs_pin.control.bounds import MAX_STEP_GAP
 from pbvs_pin.controller import Controller
 from pbvs_pin.exceptions import GainError, PbvsError
 from pbvs_pin.interrupts import interrupted_in_compiled_code
@@ -226,8 +227,10 @@ class ControlNode(Node):
         try:
             if t == self._t:
                 return  # the clock did not move
-            if t < self._t:  # the clock went back (a simulation restarted): start afresh
-                self.get_logger().warning(f"the clock went back from {self._t} s to {t} s")
+            jumped = np.isfinite(self._t) and t - self._t > MAX_STEP_GAP
+            if t < self._t or jumped:  # a simulation restarted, or a pause: start afresh
+                # (the controller refuses a step further than MAX_STEP_GAP after the last)
+                self.get_logger().warning(f"the clock jumped from {self._t} s to {t} s")
                 self.controller.reset()
                 self._joints = self._odom = self._laser = None
                 self._frames, self._t = [], -np.inf
