@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from pbvs_pin.estimation import AdaptiveAlphaBetaFilter, AlphaBetaFilter
-from pbvs_pin.exceptions import GainError
+from pbvs_pin.estimation import AdaptiveAlphaBetaFilter, AlphaBetaFilter, velocity_filter
+from pbvs_pin.exceptions import GainError, ScenarioError
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario
@@ -121,6 +121,13 @@ def test_a_glitch_leaves_the_gains_finite_and_bounded():
 def test_a_bad_process_noise_is_refused_naming_it(process_noise):
     with pytest.raises(GainError, match="process_noise"):
         AdaptiveAlphaBetaFilter(0.5, 0.1, process_noise)
+
+
+def test_the_scenario_key_selects_the_filter_and_refuses_a_negative_process_noise():
+    assert type(velocity_filter(0.5, 0.1, 0.0)) is AlphaBetaFilter
+    assert velocity_filter(0.5, 0.1, 0.03).process_noise == 0.03
+    with pytest.raises(ScenarioError, match=r"estimator\.process_noise"):
+        load_scenario("experiment1").with_values(**{"estimator.process_noise": -1.0})
 
 
 def test_four_pixels_of_noise_hold_in_closed_loop_with_the_default_settings():
