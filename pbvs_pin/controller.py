@@ -73,6 +73,7 @@ from pbvs_pin.control.settings import (
 from pbvs_pin.control.step import FusedControlStep
 from pbvs_pin.control.tracking import TargetTracker
 from pbvs_pin.control.upright import upright_row
+from pbvs_pin.estimation import velocity_filter
 from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
 from pbvs_pin.features import ImageMeasurement, TwoSphereFeatures
 from pbvs_pin.joint_angles import arm_angles
@@ -225,8 +226,9 @@ class Controller:
             settings.camera.noise_px, model.camera.focal_px, settings.target.diameter,
             self.features.n_points, self.counts,
         )  # fmt: skip
+        estimator = velocity_filter(spec.alpha, spec.beta, spec.process_noise)
         self.tracker = TargetTracker(
-            model, spec.filter(), spec.predict, spec.hold, spec.smoothing, gate
+            model, estimator, spec.predict, spec.hold, spec.smoothing, gate
         )
         self.history.clear()
         self.fused = None

@@ -17,7 +17,7 @@ from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import REFERENCE_ROBOT
 from pbvs_pin.control.kinematic import FEEDBACK_LAWS, ServoGains
 from pbvs_pin.control.upright import LOOP_GAIN_MARGIN, RESTORING_RATE
-from pbvs_pin.estimation import AlphaBetaFilter
+from pbvs_pin.estimation import NOISE_ADAPTIVE, velocity_filter
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.platform_frame import FORWARD_AXES
 from pbvs_pin.robot import MobileManipulator
@@ -351,19 +351,16 @@ class EstimatorSection(Section):
     )
     alpha: float = key(0.5, "Position gain of the alpha-beta filter, 0 < alpha <= 1.")
     beta: float = key(0.1, "Velocity gain of the alpha-beta filter, 0 < beta < 4 - 2 alpha.")
+    process_noise: float = key(0.0, NOISE_ADAPTIVE, sign=NON_NEGATIVE)
     predict: bool = key(False, "Bring each frame up to now along eq. (3) (control.tracking).")
     hold: float = key(0.0, "Servo on predictions this long after a loss [s].", sign=NON_NEGATIVE)
     smoothing: float = key(1.0, "Weight of a frame against its prediction, <= 1.", sign=POSITIVE)
-
-    def filter(self) -> AlphaBetaFilter:
-        """A fresh alpha-beta filter with these gains."""
-        return AlphaBetaFilter(self.alpha, self.beta)
 
     def validate(self) -> None:
         """Stable filter gains (GainError naming alpha or beta), smoothing <= 1."""
         if self.smoothing > 1:
             raise GainError(f"expected <= 1, got {self.smoothing:g}", "smoothing")
-        self.filter()
+        velocity_filter(self.alpha, self.beta, self.process_noise)
 
 
 @dataclass(frozen=True)
