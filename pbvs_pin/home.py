@@ -79,6 +79,10 @@ _MAX_EVALUATIONS = 100
 _MAX_ITERATIONS = 60
 """Iteration cap of step 2 (a start that has not converged by then is rarely the best)."""
 
+LOCKED_WIDTH = 1e-9
+"""Width [rad or m] of the search interval of a locked joint (lower = upper limit), which
+``least_squares`` needs open; the result holds the joint exactly at its value."""
+
 _KEEP = 1e-5
 """How much [rad or m] step 2 may lose on step 1's orientation error and band violation."""
 
@@ -195,7 +199,8 @@ def assess_home(robot: MobileManipulator, arm: npt.ArrayLike) -> HomeAssessment:
     pose = robot.camera_pose(q)
     rotation = pose.rotation
     lower, upper, limited = _limits(robot)
-    fractions = np.minimum(arm - lower, upper - arm)[limited] / (upper - lower)[limited]
+    ranged = limited & (upper > lower)  # a locked joint (lower = upper) has no fraction
+    fractions = np.minimum(arm - lower, upper - arm)[ranged] / (upper - lower)[ranged]
     return HomeAssessment(
         forward_error=float(np.arccos(np.clip(rotation[0, 2], -1.0, 1.0))),
         roll=float(np.arctan2(-rotation[2, 0], -rotation[1, 0])),
@@ -310,6 +315,7 @@ def _stage_two(
     a, b, lateral = _band(criteria, reached.band_violation(criteria) + _KEEP)
     angle_limit = reached.orientation_error + _ANGLE_SLACK
     middle, span = 0.5 * (box[0] + box[1]), box[1] - box[0]
+    span = np.where(span > 0.0, span, 1.0)  # a locked joint sits at its middle: no weight
 
     def orientation(arm: np.ndarray) -> np.ndarray:
         error = pin.log3(CAMERA_FORWARD.T @ kinematics.at(arm)[0])
@@ -388,6 +394,10 @@ def compute_home(
     box = (lower + margin, upper - margin)
     # a continuous joint is unbounded: a bound at +-pi would stop the search at the wrap
     bounds = (np.where(limited, box[0], -np.inf), np.where(limited, box[1], np.inf))
+    # a locked joint (lower = upper) is held within LOCKED_WIDTH of its value, and set to it
+    # at the end: least_squares needs lower < upper
+    locked = limited & (upper <= lower)
+    bounds = (bounds[0] - np.where(locked, LOCKED_WIDTH, 0.0), bounds[1])
     kinematics = _Kinematics(robot)
     rng = np.random.default_rng(seed)
     guesses = [np.clip(np.zeros(robot.n_arm), *box), 0.5 * (box[0] + box[1])]
@@ -415,4 +425,5 @@ def compute_home(
     ]
     arm, value = min(refined, key=lambda pair: pair[1])
     arm = np.asarray(arm if np.isfinite(value) else candidates[ranks[0]], dtype=float)
+    arm = np.where(locked, lower, arm)
     return arm_difference(arm, np.zeros(robot.n_arm), robot.arm_continuous)
