@@ -49,7 +49,6 @@ The result is deterministic and depends on the model only: the starts are the ze
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -59,10 +58,8 @@ from scipy.optimize import least_squares, minimize
 from pbvs_pin.exceptions import GainError, HomeNotFound
 from pbvs_pin.joint_angles import arm_difference
 from pbvs_pin.manipulability import arm_manipulability
-from pbvs_pin.validation import as_count, convert_fields
-
-if TYPE_CHECKING:
-    from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.validation import as_count, as_instance, convert_fields
 
 CAMERA_FORWARD = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 """``R_d``: optical frame in the platform frame when looking forward, image upright."""
@@ -194,6 +191,7 @@ def assess_home(robot: MobileManipulator, arm: npt.ArrayLike) -> HomeAssessment:
     Returns:
         The assessment.
     """
+    robot = as_instance("robot", robot, MobileManipulator)
     arm = np.asarray(arm, dtype=float)
     q = robot.with_arm_positions(robot.neutral(), arm)
     pose = robot.camera_pose(q)
@@ -386,6 +384,7 @@ def compute_home(
         HomeNotFound: If no posture brings the optical axis within
             ``criteria.max_forward_error`` of the platform's x axis.
     """
+    robot = as_instance("robot", robot, MobileManipulator)
     criteria = criteria or HomeCriteria()
     starts, seed = as_count("starts", starts), as_count("seed", seed)
     refine = as_count("refine", refine, minimum=1)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import tomllib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -145,6 +146,17 @@ def as_count(name: str, value: object, minimum: int = 0) -> int:
     if number < minimum:
         raise GainError(f"{name}: expected a whole number >= {minimum}, got {value!r}", name)
     return int(number)
+
+
+def as_instance(name: str, value: object, kind: type) -> Any:
+    """``value`` itself, if it is a ``kind`` (e.g. a ``MobileManipulator``).
+
+    Raises:
+        WrongType: If it is not (a dict, a name or a list where an object is expected).
+    """
+    if not isinstance(value, kind):
+        raise WrongType(name, f"a {kind.__name__}", value)
+    return value
 
 
 NAME_MAX = 255
