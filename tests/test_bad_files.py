@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from test_bad_cli import SPEC  # a valid sweep spec
 
 from pbvs_pin.analysis import analyze_log
 from pbvs_pin.cli import main
@@ -25,16 +26,6 @@ LONG = "x" * 300
 
 NOT_UTF8 = b"duration = 1.0\n# caf\xe9 \xff\xfe\n"
 """TOML text with Latin-1 bytes: not UTF-8."""
-
-SPEC = """
-[sweep]
-scenario = "experiment1"
-seed = 5
-[fixed]
-duration = 0.1
-[grid]
-estimator.alpha = [0.5, 0.6]
-"""
 
 META = {"scenario": "experiment1", "robot": "pioneer_cyton", "feature_scale": 150.0,
         "k": [1.0, 1.0, 1.0]}  # fmt: skip
