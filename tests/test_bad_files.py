@@ -20,6 +20,7 @@ from pbvs_pin.exceptions import LogError, ScenarioError, WrongType
 from pbvs_pin.sim.log import CHANNELS, RunLog
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sweep.spec import load_sweep
+from pbvs_pin.zoo import load_zoo
 
 LONG = "x" * 300
 """A file name longer than any file system's limit (255 bytes)."""
@@ -138,3 +139,10 @@ def test_a_name_of_300_characters_in_the_api():
         load_scenario(f"{LONG}.toml")
     with pytest.raises(WrongType, match=r"path: expected a path whose names have at most 255"):
         RunLog.load(LONG)
+
+
+def test_a_non_utf8_robot_file_in_a_zoo_folder(tmp_path):
+    (tmp_path / "a.toml").write_bytes(b'[robot]\nname = "pioneer_cyton"\n')
+    (tmp_path / "b.toml").write_bytes(NOT_UTF8)
+    with pytest.raises(ScenarioError, match=r"b\.toml: not UTF-8 text \(expected a robot file"):
+        load_zoo(tmp_path)
