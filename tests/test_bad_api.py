@@ -169,6 +169,12 @@ STANDALONE = [
      "name: expected a detector name"),
     ("detector-factory-text", lambda: register_detector("mine", "abc"), WrongType,
      "factory: expected a callable"),
+    ("controller-robot-name", lambda: pbvs_pin.Controller("pioneer_cyton"), WrongType,
+     "robot: expected a MobileManipulator"),
+    ("colour-detector-camera-dict", lambda: pbvs_pin.ColourDetector({"width": 640}), WrongType,
+     "camera: expected a CameraIntrinsics"),
+    ("platform-forward-axis-list", lambda: pbvs_pin.PlatformFrame(forward_axis=["x"]), GainError,
+     "expected one of ('x', 'y', '-x', '-y')"),
     ("with-values-xi_d-swapped", lambda: load_scenario("experiment1").with_values(
         **{"target.xi_d": [0.0, -60.0, 60.0]}), ScenarioError, "target.xi_d"),
 ]  # fmt: skip
