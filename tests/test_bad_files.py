@@ -146,3 +146,17 @@ def test_a_non_utf8_robot_file_in_a_zoo_folder(tmp_path):
     (tmp_path / "b.toml").write_bytes(NOT_UTF8)
     with pytest.raises(ScenarioError, match=r"b\.toml: not UTF-8 text \(expected a robot file"):
         load_zoo(tmp_path)
+
+
+def test_analyze_of_a_log_with_an_unknown_compression_method(tmp_path, capsys):
+    """A zip whose members name compression method 99: zipfile's NotImplementedError."""
+    path = _log(tmp_path / "run", META)
+    data = bytearray(open(path, "rb").read())
+    for signature, offset in ((b"PK\x03\x04", 8), (b"PK\x01\x02", 10)):  # local, central
+        at = data.find(signature)
+        while at != -1:
+            data[at + offset : at + offset + 2] = (99).to_bytes(2, "little")
+            at = data.find(signature, at + 4)
+    open(path, "wb").write(bytes(data))
+    line = _one_line(capsys, main(["analyze", path]))
+    assert f"{path}: not a readable run log (NotImplementedError)" in line

@@ -155,7 +155,7 @@ class RunLog:
         except FileNotFoundError as err:
             raise LogError(str(path), "no such file (expected a run's log.npz)") from err
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error,
-                TypeError, UnicodeDecodeError) as err:  # fmt: skip
+                TypeError, UnicodeDecodeError, NotImplementedError) as err:  # fmt: skip
             raise LogError(str(path), f"not a readable run log ({type(err).__name__})") from err
         if not isinstance(meta, dict) or "t" not in channels or channels["t"].ndim != 1:
             raise LogError(str(path), "not a run log: no meta table or no time channel t")
