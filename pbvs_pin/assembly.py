@@ -37,6 +37,7 @@ from pbvs_pin.exceptions import (
 from pbvs_pin.link_inertia import checked_density, fill_missing_inertias
 from pbvs_pin.shipped import shipped_urdf
 from pbvs_pin.urdf_checks import axisless_joints, check_physics, check_tree
+from pbvs_pin.validation import as_path
 
 DRIVE_ADVICE = (
     "The drive needs wheel_radius [m], track [m] (distance between the left and right wheels) "
@@ -260,6 +261,7 @@ def load_urdf(
     """
     if not isinstance(source, str | os.PathLike) or str(source) == "":
         raise WrongType("source", "a URDF path or a robot name (str or pathlib.Path)", source)
+    as_path("source", source)  # refuses a name the system cannot open ("File name too long")
     if geometry_density is not None:
         geometry_density = checked_density(geometry_density)
     path, package_dirs = _resolve(source)
