@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import URDF_DIR
 from test_bad_cli import SPEC  # a valid sweep spec
 
 from pbvs_pin.analysis import analyze_log
@@ -160,3 +161,15 @@ def test_analyze_of_a_log_with_an_unknown_compression_method(tmp_path, capsys):
     open(path, "wb").write(bytes(data))
     line = _one_line(capsys, main(["analyze", path]))
     assert f"{path}: not a readable run log (NotImplementedError)" in line
+
+
+def test_a_urdf_joint_axis_of_one_number(tmp_path, capsys):
+    """``<axis xyz="0"/>`` (found by the fuzz at 5x): refused, not a matmul ValueError."""
+    path = tmp_path / "axis.urdf"
+    text = (URDF_DIR / "pioneer_cyton.urdf").read_text()
+    start = text.index('<joint name="front_left_wheel_joint"')
+    at = text.index('<axis xyz="', start)
+    end = text.index('"', at + len('<axis xyz="'))
+    path.write_text(text[:at] + '<axis xyz="0' + text[end:])
+    line = _one_line(capsys, main(["info", str(path)]))
+    assert "joint 'front_left_wheel_joint': <axis xyz=\"0\">: expected three finite numbers" in line
