@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import copy
 import importlib.util
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,10 +32,12 @@ from pbvs_pin.exceptions import (
     FrameNotFound,
     RobotNotFound,
     UrdfError,
+    WrongType,
 )
 from pbvs_pin.link_inertia import checked_density, fill_missing_inertias
 from pbvs_pin.shipped import shipped_urdf
 from pbvs_pin.urdf_checks import axisless_joints, check_physics, check_tree
+from pbvs_pin.validation import as_path
 
 DRIVE_ADVICE = (
     "The drive needs wheel_radius [m], track [m] (distance between the left and right wheels) "
@@ -254,7 +257,11 @@ def load_urdf(
             do not form a tree, or its masses, inertias or limits are impossible
             (:mod:`pbvs_pin.urdf_checks`).
         RobotNotFound: If the name is neither a file nor a known robot.
+        WrongType: If ``source`` is not a path or a name.
     """
+    if not isinstance(source, str | os.PathLike) or str(source) == "":
+        raise WrongType("source", "a URDF path or a robot name (str or pathlib.Path)", source)
+    as_path("source", source)  # refuses a name the system cannot open ("File name too long")
     if geometry_density is not None:
         geometry_density = checked_density(geometry_density)
     path, package_dirs = _resolve(source)

@@ -11,6 +11,7 @@ compute_home gives for it.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree
@@ -19,7 +20,7 @@ import numpy as np
 
 from pbvs_pin.assembly import example_robot_data_alias
 from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.exceptions import RobotNotFound
+from pbvs_pin.exceptions import RobotNotFound, WrongType
 from pbvs_pin.home import compute_home
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.shipped import shipped_urdf
@@ -214,5 +215,8 @@ def load_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileManip
 
     Raises:
         RobotNotFound: If the name is unknown.
+        WrongType: If ``name`` is not text or a path.
     """
+    if not isinstance(name, str | os.PathLike) or str(name) == "":
+        raise WrongType("name", "a robot name or a URDF path (str or pathlib.Path)", name)
     return build_robot(name, camera)

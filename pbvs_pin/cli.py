@@ -26,7 +26,6 @@ from pbvs_pin.exceptions import (
     GainError,
     PbvsError,
     RobotNotFound,
-    ScenarioError,
     UsageError,
     ViewerUnavailable,
 )
@@ -64,17 +63,11 @@ def load_robot_argument(argument: str) -> MobileManipulator:
             its robot cannot be built (naming the dotted field).
     """
     from pbvs_pin.catalogue import build_robot
-    from pbvs_pin.sim.scenario import load_scenario
+    from pbvs_pin.experiments import robot_file
 
     if Path(argument).suffix.lower() != ".toml":
         return build_robot(argument)
-    if not Path(argument).is_file():
-        raise ScenarioError(argument, "", "no such robot or scenario file")
-    scenario = load_scenario(argument)
-    if "robot" not in tomllib.loads(Path(argument).read_text()):
-        raise ScenarioError(
-            argument, "robot", 'no [robot] table; add one, e.g. [robot] name = "pioneer_cyton"'
-        )
+    scenario = robot_file(argument)
     return scenario.robot.build(scenario.camera.intrinsics())
 
 
@@ -421,9 +414,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="shipped scenario name (experiment1 ... experiment4; see `pbvs-pin list`) or a "
         "scenario TOML file",
     )
-    run.add_argument(
-        "--robot", help="robot instead of the scenario's: " + ROBOT_HELP
-    )
+    run.add_argument("--robot", help="robot instead of the scenario's: " + ROBOT_HELP)
     run.add_argument(
         "--set",
         action="append",
@@ -562,6 +553,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # e.g. `pbvs-pin list | head`: the reader left, nothing to say
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+    except OSError as err:  # a system error no file door caught: one line all the same
+        print(f"pbvs-pin: error: {err.filename or ''}: {err.strerror or err}", file=sys.stderr)
+        return 2
     finally:
         finished()
     return 0

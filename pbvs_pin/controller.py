@@ -78,7 +78,7 @@ from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
 from pbvs_pin.features import ImageMeasurement, TwoSphereFeatures
 from pbvs_pin.joint_angles import arm_angles
 from pbvs_pin.robot import UNIT_TOLERANCE, MobileManipulator
-from pbvs_pin.validation import as_array, as_number, as_numbers
+from pbvs_pin.validation import as_array, as_instance, as_number, as_numbers
 
 JUMP_SLACK = (0.05, 0.1)
 """Platform motion in one step [m, rad] beyond the velocity limits' reach that counts as an
@@ -170,7 +170,9 @@ class Controller:
         settings: ControllerSettings | None = None,
         announce: bool = True,
     ) -> None:
-        settings = settings if settings is not None else ControllerSettings()
+        robot = as_instance("robot", robot, MobileManipulator)
+        settings = ControllerSettings() if settings is None else settings
+        settings = as_instance("settings", settings, ControllerSettings)
         camera = settings.camera.intrinsics()
         if robot.camera != camera:
             robot = copy.copy(robot)

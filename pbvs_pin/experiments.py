@@ -6,7 +6,6 @@ and assembles the page.
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Callable
 from contextlib import nullcontext
 from dataclasses import replace
@@ -52,6 +51,7 @@ from pbvs_pin.sim.log import (
 from pbvs_pin.sim.loop import Snapshot, simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import Scenario, load_scenario, parse_scenario
+from pbvs_pin.validation import as_path, read_toml
 
 PAPER_CLAIMS = {name: claim.text for name, claim in CLAIMS.items()}
 """The paper's claim for each experiment (§5); the rules are in :data:`pbvs_pin.claims.CLAIMS`."""
@@ -167,6 +167,20 @@ def _write_output(
         write_eye_view(log, out / f"eye_view.{'mp4' if eye == 'video' else 'png'}", eye)
 
 
+def robot_file(path: str) -> Scenario:
+    """The scenario of a robot file (or a whole scenario file): a TOML file with ``[robot]``.
+
+    Raises:
+        ScenarioError: A missing, unreadable or invalid file, or one without ``[robot]``.
+    """
+    if not as_path("robot", path).is_file():
+        raise ScenarioError(path, "", "no such robot or scenario file")
+    scenario = load_scenario(path)
+    if "robot" not in read_toml(Path(path), "a robot file"):
+        raise ScenarioError(path, "robot", 'no [robot] table; add one: [robot] name = "..."')
+    return scenario
+
+
 def with_robot(scenario: Scenario, robot: str) -> Scenario:
     """``scenario`` on another robot: a shipped name, a URDF file, or a robot file.
 
@@ -179,10 +193,8 @@ def with_robot(scenario: Scenario, robot: str) -> Scenario:
         ScenarioError: If the robot file has no ``[robot]`` table or the table is invalid.
     """
     own = None  # a robot file's table, which names that file
-    if Path(robot).suffix.lower() == ".toml":
-        own = load_scenario(robot).robot  # names the file and field of any bad value
-        if "robot" not in tomllib.loads(Path(robot).read_text(encoding="utf-8")):
-            raise ScenarioError(robot, "robot", "no [robot] table (expected a robot file)")
+    if as_path("robot", robot).suffix.lower() == ".toml":
+        own = robot_file(robot).robot  # names the file and field of any bad value
         table = own.to_toml()
     elif Path(robot).suffix.lower() == ".urdf" or Path(robot).is_file():
         table = {"urdf": str(Path(robot).resolve()), "camera_frame": "camera_optical_frame"}

@@ -49,7 +49,6 @@ The result is deterministic and depends on the model only: the starts are the ze
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -59,10 +58,8 @@ from scipy.optimize import least_squares, minimize
 from pbvs_pin.exceptions import GainError, HomeNotFound
 from pbvs_pin.joint_angles import arm_difference
 from pbvs_pin.manipulability import arm_manipulability
-from pbvs_pin.validation import as_count, convert_fields
-
-if TYPE_CHECKING:
-    from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.validation import as_count, as_instance, convert_fields
 
 CAMERA_FORWARD = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 """``R_d``: optical frame in the platform frame when looking forward, image upright."""
@@ -78,6 +75,10 @@ _MAX_EVALUATIONS = 100
 
 _MAX_ITERATIONS = 60
 """Iteration cap of step 2 (a start that has not converged by then is rarely the best)."""
+
+LOCKED_WIDTH = 1e-9
+"""Width [rad or m] of the search interval of a locked joint (lower = upper limit), which
+``least_squares`` needs open; the result holds the joint exactly at its value."""
 
 _KEEP = 1e-5
 """How much [rad or m] step 2 may lose on step 1's orientation error and band violation."""
@@ -190,12 +191,14 @@ def assess_home(robot: MobileManipulator, arm: npt.ArrayLike) -> HomeAssessment:
     Returns:
         The assessment.
     """
+    robot = as_instance("robot", robot, MobileManipulator)
     arm = np.asarray(arm, dtype=float)
     q = robot.with_arm_positions(robot.neutral(), arm)
     pose = robot.camera_pose(q)
     rotation = pose.rotation
     lower, upper, limited = _limits(robot)
-    fractions = np.minimum(arm - lower, upper - arm)[limited] / (upper - lower)[limited]
+    ranged = limited & (upper > lower)  # a locked joint (lower = upper) has no fraction
+    fractions = np.minimum(arm - lower, upper - arm)[ranged] / (upper - lower)[ranged]
     return HomeAssessment(
         forward_error=float(np.arccos(np.clip(rotation[0, 2], -1.0, 1.0))),
         roll=float(np.arctan2(-rotation[2, 0], -rotation[1, 0])),
@@ -310,6 +313,7 @@ def _stage_two(
     a, b, lateral = _band(criteria, reached.band_violation(criteria) + _KEEP)
     angle_limit = reached.orientation_error + _ANGLE_SLACK
     middle, span = 0.5 * (box[0] + box[1]), box[1] - box[0]
+    span = np.where(span > 0.0, span, 1.0)  # a locked joint sits at its middle: no weight
 
     def orientation(arm: np.ndarray) -> np.ndarray:
         error = pin.log3(CAMERA_FORWARD.T @ kinematics.at(arm)[0])
@@ -380,6 +384,7 @@ def compute_home(
         HomeNotFound: If no posture brings the optical axis within
             ``criteria.max_forward_error`` of the platform's x axis.
     """
+    robot = as_instance("robot", robot, MobileManipulator)
     criteria = criteria or HomeCriteria()
     starts, seed = as_count("starts", starts), as_count("seed", seed)
     refine = as_count("refine", refine, minimum=1)
@@ -388,6 +393,10 @@ def compute_home(
     box = (lower + margin, upper - margin)
     # a continuous joint is unbounded: a bound at +-pi would stop the search at the wrap
     bounds = (np.where(limited, box[0], -np.inf), np.where(limited, box[1], np.inf))
+    # a locked joint (lower = upper) is held within LOCKED_WIDTH of its value, and set to it
+    # at the end: least_squares needs lower < upper
+    locked = limited & (upper <= lower)
+    bounds = (bounds[0] - np.where(locked, LOCKED_WIDTH, 0.0), bounds[1])
     kinematics = _Kinematics(robot)
     rng = np.random.default_rng(seed)
     guesses = [np.clip(np.zeros(robot.n_arm), *box), 0.5 * (box[0] + box[1])]
@@ -415,4 +424,5 @@ def compute_home(
     ]
     arm, value = min(refined, key=lambda pair: pair[1])
     arm = np.asarray(arm if np.isfinite(value) else candidates[ranks[0]], dtype=float)
+    arm = np.where(locked, lower, arm)
     return arm_difference(arm, np.zeros(robot.n_arm), robot.arm_continuous)

@@ -9,8 +9,6 @@ rows otherwise.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
@@ -18,10 +16,8 @@ from scipy.optimize import minimize
 
 from pbvs_pin.exceptions import WrongType
 from pbvs_pin.joint_angles import arm_difference
-from pbvs_pin.validation import as_count, as_numbers
-
-if TYPE_CHECKING:
-    from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.validation import as_count, as_instance, as_numbers
 
 LIMIT_MARGIN = 0.05
 """Distance [rad or m] the maximising posture keeps from each joint limit."""
@@ -52,6 +48,7 @@ def arm_jacobian(robot: MobileManipulator, q: npt.ArrayLike) -> np.ndarray:
     Returns:
         Shape (3, n_arm) for an arm of three joints or fewer, else (6, n_arm).
     """
+    robot = as_instance("robot", robot, MobileManipulator)
     jacobian = pin.computeFrameJacobian(
         robot.model,
         robot.data,
@@ -70,6 +67,7 @@ def arm_manipulability(robot: MobileManipulator, q: npt.ArrayLike) -> float:
 
 def whole_body_manipulability(robot: MobileManipulator, q: npt.ArrayLike) -> float:
     """Manipulability of the camera's twist over all actuated velocities at ``q``."""
+    robot = as_instance("robot", robot, MobileManipulator)
     return manipulability(robot.camera_jacobian(q))
 
 
@@ -94,6 +92,7 @@ def max_manipulability_posture(
     Returns:
         ``theta_d`` [rad or m]. Shape (n_arm,).
     """
+    robot = as_instance("robot", robot, MobileManipulator)
     starts, seed = as_count("starts", starts), as_count("seed", seed)
     lower, upper = robot.arm_position_limits()
     limited = np.isfinite(lower) & np.isfinite(upper)

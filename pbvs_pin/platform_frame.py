@@ -64,7 +64,7 @@ class PlatformFrame:
         Raises:
             GainError: Naming ``forward_axis`` or ``base_joints``.
         """
-        if self.forward_axis not in FORWARD_AXES:
+        if not isinstance(self.forward_axis, str) or self.forward_axis not in FORWARD_AXES:
             raise GainError(
                 f"expected one of {tuple(FORWARD_AXES)} (the root link's axis the platform "
                 f"drives along), got {self.forward_axis!r}", "forward_axis",

@@ -33,7 +33,7 @@ from pbvs_pin.assembly import (
 )
 from pbvs_pin.base import BaseAdapter, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.exceptions import FrameNotFound, GainError, NoMovableJoint, UrdfError
+from pbvs_pin.exceptions import FrameNotFound, GainError, NoMovableJoint, UrdfError, WrongType
 from pbvs_pin.joint_angles import arm_angles
 from pbvs_pin.platform_frame import PlatformFrame, fix_base_joints, turn_platform
 from pbvs_pin.urdf_checks import check_meshes
@@ -540,7 +540,9 @@ class MobileManipulator:
         return pin.SE3(self.data.oMf[frame_id])
 
     def frame_id(self, frame: str) -> int:
-        """Index of a named frame, or FrameNotFound listing the valid names."""
+        """Index of a named frame, or FrameNotFound listing the valid names (WrongType: no text)."""
+        if not isinstance(frame, str):
+            raise WrongType("frame", "a frame name (text)", frame)
         if not self.model.existFrame(frame):
             raise FrameNotFound(frame, [f.name for f in self.model.frames], self.source)
         return self.model.getFrameId(frame)

@@ -24,7 +24,6 @@ import json
 import site
 import sysconfig
 import time
-import tomllib
 import warnings
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -42,6 +41,7 @@ from pbvs_pin.outputs import Output
 from pbvs_pin.report import rst_row
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.shipped import urdf_dir
+from pbvs_pin.validation import read_toml
 
 EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
 """The paper's experiments, as shipped scenarios."""
@@ -107,16 +107,14 @@ def load_zoo(folder: str | Path) -> list[ZooRobot]:
     """Every ``*.toml`` robot file of ``folder``, sorted by name.
 
     Raises:
-        ScenarioError: Naming a file without a ``[robot]`` table or that is not valid TOML.
+        ScenarioError: Naming a file without a ``[robot]`` table, or that is not UTF-8 text
+            or not valid TOML.
     """
     from pbvs_pin.exceptions import ScenarioError
 
     robots = []
     for path in sorted(Path(folder).glob("*.toml")):
-        try:
-            table = tomllib.loads(path.read_text())
-        except tomllib.TOMLDecodeError as err:
-            raise ScenarioError(str(path), "", f"not valid TOML ({err})") from err
+        table = read_toml(path, "a robot file")
         if "robot" not in table:
             raise ScenarioError(str(path), "robot", "missing; a robot file has a [robot] table")
         robots.append(ZooRobot(path.stem, path, table["robot"]))

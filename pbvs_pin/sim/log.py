@@ -145,12 +145,17 @@ class RunLog:
         if path.is_dir():
             path = path / "log.npz"
         try:
-            with np.load(path, allow_pickle=False) as data:
+            data = np.load(path, allow_pickle=False)
+            if not isinstance(data, np.lib.npyio.NpzFile):  # a .npy file: one array
+                raise LogError(str(path), "one NumPy array (.npy), not a run log (expected the "
+                               ".npz archive that pbvs-pin run writes)")  # fmt: skip
+            with data:
                 meta = json.loads(str(data["meta"]))
                 channels = {name: data[name] for name in data.files if name != "meta"}
         except FileNotFoundError as err:
             raise LogError(str(path), "no such file (expected a run's log.npz)") from err
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as err:
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error,
+                TypeError, UnicodeDecodeError, NotImplementedError) as err:  # fmt: skip
             raise LogError(str(path), f"not a readable run log ({type(err).__name__})") from err
         if not isinstance(meta, dict) or "t" not in channels or channels["t"].ndim != 1:
             raise LogError(str(path), "not a run log: no meta table or no time channel t")

@@ -31,6 +31,7 @@ from pbvs_pin.sim.scenario import Scenario
 from pbvs_pin.sim.sensing import Sensing
 from pbvs_pin.sim.setup import Setup, build
 from pbvs_pin.sim.vision import Frame
+from pbvs_pin.validation import as_instance
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from pbvs_pin.sim.detection import CameraImage
@@ -83,9 +84,13 @@ def simulate(
         The run's log (arrays at the log rate) with its setup's key facts.
 
     Raises:
+        WrongType: If ``scenario`` is not a Scenario (e.g. a name: use ``load_scenario``), or
+            ``robot`` not a MobileManipulator.
         RunInterrupted: On Ctrl-C; it carries the run so far, its ``meta["interrupted"]``
             true (None when nothing was recorded yet).
     """
+    scenario = as_instance("scenario", scenario, Scenario)
+    robot = None if robot is None else as_instance("robot", robot, MobileManipulator)
     with announce_compiles(progress):
         return _simulate(scenario, progress, observer, robot)
 

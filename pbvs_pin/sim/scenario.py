@@ -15,7 +15,6 @@ overrides dotted fields of :meth:`Scenario.to_toml` and parses again.
 from __future__ import annotations
 
 import json
-import tomllib
 from collections.abc import Mapping
 from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
@@ -42,7 +41,7 @@ from pbvs_pin.sim.sections import (
     SimulationSection,
     TargetSection,
 )
-from pbvs_pin.validation import as_path
+from pbvs_pin.validation import as_path, read_toml
 
 OBSTACLE_KINDS: dict[str, type[CircleObstacle | BoxObstacle]] = {
     "circle": CircleObstacle,
@@ -188,14 +187,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
                 + ", ".join(shipped_scenarios()),
             )
         path = shipped
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError as err:
-        raise ScenarioError(str(path), "", f"not UTF-8 text (expected a TOML file): {err}") from err
-    except OSError as err:
-        raise ScenarioError(str(path), "", f"cannot be read: {err.strerror}") from err
-    except tomllib.TOMLDecodeError as err:
-        raise ScenarioError(str(path), "", f"not valid TOML: {err}") from err
+    raw = read_toml(path, "a scenario")
     if not raw:
         raise ScenarioError(
             str(path),
