@@ -64,6 +64,12 @@ singular value than the strongest are damped rather than driven at the full rate
 
 
 @njit(cache=True, inline="always")
+def balanced_gain(margin: float, period: float, k_max: float) -> float:
+    """``g = rho / (T k_max)`` with ``rho = BALANCED_SHARE * margin`` [1]."""
+    return BALANCED_SHARE * margin / (period * k_max)
+
+
+@njit(cache=True, inline="always")
 def joint_room(
     theta: np.ndarray, lower: np.ndarray, upper: np.ndarray, n_base: int, n: int
 ) -> tuple[np.ndarray, np.ndarray]:

@@ -29,7 +29,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-from pbvs_pin.control.balanced import BALANCED_SHARE, balanced_feedback
+from pbvs_pin.control.balanced import BALANCED_SHARE, balanced_feedback, balanced_gain
 from pbvs_pin.control.upright import (
     LOOP_GAIN_MARGIN,
     RESTORING_RATE,
@@ -251,7 +251,7 @@ def passivity_law(
         )
     gains = SafetyOutput(loop_gain, gain_factor, sigma_phi, upright_weight)
     if feedback_law == BALANCED:
-        gain = loop_gain / (safety.camera_period * np.max(k))
+        gain = balanced_gain(safety.loop_gain_margin, safety.camera_period, np.max(k))
         feedback = balanced_feedback(kc_error, jacobian, limits, room_up, room_down, gain)
     elif feedback_law == PSEUDOINVERSE:
         feedback = matvec(pinv, kc_error)

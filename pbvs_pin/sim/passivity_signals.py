@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pbvs_pin.control.balanced import BALANCED_SHARE, balanced_feedback, joint_room
+from pbvs_pin.control.balanced import balanced_feedback, balanced_gain, joint_room
 
 if TYPE_CHECKING:
     from pbvs_pin.control.kinematic import PassivityController
@@ -144,6 +144,6 @@ def law_feedback(
         return jacobian.T @ kc_error
     if law.gains.feedback == "pseudoinverse":
         return law.pseudo_inverse(jacobian)[0] @ kc_error
-    gain = BALANCED_SHARE * law.safety.loop_gain_margin / (law.safety.camera_period * k.max())
+    gain = balanced_gain(law.safety.loop_gain_margin, law.safety.camera_period, k.max())
     jacobian = np.ascontiguousarray(jacobian, dtype=float)
     return balanced_feedback(kc_error, jacobian, law.velocity_limits, *room, gain)
