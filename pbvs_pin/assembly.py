@@ -315,6 +315,19 @@ def _origin(joint: yourdfpy.Joint) -> np.ndarray:
     return np.eye(4) if joint.origin is None else np.asarray(joint.origin, dtype=float)
 
 
+def _joint_carriers(robot: yourdfpy.URDF) -> set[str]:
+    """Links with a movable (non-fixed) joint somewhere below them: never a wheel's link."""
+    carriers: set[str] = set()
+    parents = {joint.child: joint.parent for joint in robot.joints}
+    for joint in robot.joints:
+        if joint.type != "fixed":
+            link = joint.parent
+            while link is not None and link not in carriers:
+                carriers.add(link)
+                link = parents.get(link)
+    return carriers
+
+
 def _wheel_radius(link: yourdfpy.Link) -> float | None:
     """Radius of a wheel link's first cylinder or sphere (collision first), if any."""
     for element in [*link.collisions, *link.visuals]:
@@ -347,6 +360,10 @@ class DriveAxle:
 def find_drive_axle(source: UrdfSource) -> DriveAxle:
     """Find the drive wheels of a differential-drive platform.
 
+    A wheel is a continuous or revolute joint about the platform's y axis, hanging from the
+    root link through fixed joints, with no movable joint below it (a mounted arm whose first
+    joint pitches about y is not a wheel).
+
     Args:
         source: The platform's (or whole robot's) description.
 
@@ -361,9 +378,12 @@ def find_drive_axle(source: UrdfSource) -> DriveAxle:
     root = source.root_link()
     poses = _fixed_chain_poses(robot, root)
     links = {link.name: link for link in robot.links}
+    carriers = _joint_carriers(robot)
     wheels = []
     for joint in robot.joints:
         if joint.type not in ("continuous", "revolute") or joint.parent not in poses:
+            continue
+        if joint.child in carriers:  # an arm's first joint, not a wheel: a chain hangs below
             continue
         pose = poses[joint.parent] @ _origin(joint)
         if joint.name in source.axisless and "wheel" in f"{joint.name} {joint.child}".lower():

@@ -247,3 +247,18 @@ def test_explicit_drive_parameters_replace_the_missing_wheels():
     robot = MobileManipulator.from_urdf(str(DATA_DIR / "no_wheels.urdf"), base=drive)
     assert robot.n == 3
     np.testing.assert_allclose(robot.velocity_limits[:2], [0.5, 2.5])  # r w, 2 r w / track
+
+
+def test_an_arm_whose_first_joint_pitches_about_y_is_not_a_wheel():
+    """An arm mounted rolled by pi/2 turns its pan axis onto the platform's -y, beside the
+    wheels: it carries a chain, so the drive axle stays the Pioneer's four wheels (its URDF:
+    r 0.1075 m, 6.5 rad/s)."""
+    robot = MobileManipulator.assemble(
+        base="pioneer3at",
+        arm=str(DATA_DIR / "continuous_arm.urdf"),
+        mount=(0.10, 0.15, 0.27, np.pi / 2, 0.0, 0.0),
+        camera_link="tool_link",
+    )
+    assert robot.base.wheel_radius == pytest.approx(0.1075)
+    assert robot.base.max_wheel_speed == pytest.approx(6.5)
+    assert robot.velocity_names[2:] == ("pan_joint", "shoulder_joint", "elbow_joint")
