@@ -49,6 +49,7 @@ from pbvs_pin.exceptions import (
     UrdfError,
 )
 from pbvs_pin.home import compute_home
+from pbvs_pin.holding import warn_overloaded
 from pbvs_pin.placement import warn_placement
 from pbvs_pin.platform_frame import PlatformFrame
 from pbvs_pin.robot import MobileManipulator
@@ -240,7 +241,8 @@ def build_robot_from(
 
     Warns:
         PbvsWarning: If links are below the floor or arm links inside the platform at home
-            (:func:`pbvs_pin.placement.warn_placement`).
+            (:func:`pbvs_pin.placement.warn_placement`), or gravity loads a joint past its
+            effort limit there (:func:`pbvs_pin.holding.warn_overloaded`).
 
     Raises:
         ScenarioError: Naming ``spec.source`` and the dotted field: an unknown name, a
@@ -264,6 +266,7 @@ def build_robot_from(
             raise ScenarioError(spec.source, "robot.home", str(err)) from err
     if spec.form != "name":
         warn_placement(robot, spec.source or robot.source)
+        warn_overloaded(robot, spec.source or robot.source)
     return robot
 
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import site
 import sysconfig
 import time
@@ -86,7 +87,8 @@ def _package_of(source: str) -> str:
 
     if source.startswith(PACKAGE_PREFIX):
         module = source[len(PACKAGE_PREFIX) :].split("/", 1)[0]
-        return packages_distributions().get(module, [module])[0]
+        name = packages_distributions().get(module, [module])[0]
+        return re.sub(r"[-_.]+", "-", name).lower()  # as pip names it (PEP 503): fetch-planning
     if source == REFERENCE_ROBOT:
         return SHIPPED_PACKAGE
     if source in RECIPES:
