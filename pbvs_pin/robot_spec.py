@@ -48,8 +48,8 @@ from pbvs_pin.exceptions import (
     ScenarioError,
     UrdfError,
 )
-from pbvs_pin.home import compute_home
 from pbvs_pin.holding import warn_overloaded
+from pbvs_pin.home import compute_home
 from pbvs_pin.placement import warn_placement
 from pbvs_pin.platform_frame import PlatformFrame
 from pbvs_pin.robot import MobileManipulator
