@@ -89,7 +89,8 @@ def test_play_pause_and_slider_are_visible_and_drive_the_animation(page):
     assert page.page.evaluate("() => viewer.animator.playing") is (not playing)
     assert page.page.inner_text("#pbvs-play") == ("Play" if playing else "Pause")
     if not playing:
-        page.page.click("#pbvs-play")  # pause again
+        page.page.click("#pbvs-play")  # pause again, and wait until the page has paused
+        page.page.wait_for_function("() => !viewer.animator.playing", timeout=5000)
     page.page.evaluate(
         "(t) => { const s = document.getElementById('pbvs-slider'); s.value = t;"
         " s.dispatchEvent(new Event('input')); s.dispatchEvent(new Event('change')); }",
