@@ -88,6 +88,47 @@ def scenario_keys(node: Node) -> dict[str, object]:
     }
 
 
+def frame_of(message: Image, detector, camera, diameter: float) -> CameraFrame:
+    """The frame of an image: the detector's spheres, stamped with ``header.stamp``.
+
+    Args:
+        message: The image (``rgb8`` or ``bgr8``).
+        detector: Finds the spheres (:func:`pbvs_pin.sim.detection.detector_from`).
+        camera: The controller's intrinsics.
+        diameter: The spheres' diameter [m].
+
+    Raises:
+        ControlInputError: If the image's encoding or size is not one the node reads.
+    """
+    capture = messages.seconds(message.header.stamp)
+    points, diameters, visible = detector.detect(messages.image_array(message))
+    if not visible:
+        return CameraFrame.not_visible(capture)
+    return CameraFrame.from_diameters(capture, points, diameters, camera, diameter)
+
+
+def step_inputs(model, joints: tuple, odom: tuple, frames: list[CameraFrame], t: float) -> tuple:
+    """What the controller steps on at ``t`` [s], from the newest readings.
+
+    Args:
+        model: The controller's robot model.
+        joints: Arm positions and rates, shape (n_arm,) each (:func:`messages.arm_reading`).
+        odom: Platform pose and velocity (:func:`messages.platform_reading`).
+        frames: The frames not used yet, oldest first.
+        t: The step's time [s].
+
+    Returns:
+        ``q`` (shape (nq,)), ``v`` (shape (n,)), the newest frame captured by ``t`` (None),
+        and the frames captured after ``t``, kept for a later step.
+    """
+    arm, arm_rates = joints
+    planar, base = odom
+    q = messages.configuration(model, planar, arm)
+    v = np.concatenate([base, arm_rates])
+    ready = [f for f in frames if f.capture_time <= t]
+    return q, v, ready[-1] if ready else None, [f for f in frames if f.capture_time > t]
+
+
 class ControlNode(Node):
     """The controller as a ROS 2 node (module docstring).
 
@@ -197,15 +238,7 @@ class ControlNode(Node):
         with self._guard("camera/image_raw"):
             if self._camera_problem:
                 return
-            capture = messages.seconds(message.header.stamp)
-            points, diameters, visible = self.detector.detect(messages.image_array(message))
-            if visible:
-                frame = CameraFrame.from_diameters(
-                    capture, points, diameters, self.model.camera, self.diameter
-                )
-            else:
-                frame = CameraFrame.not_visible(capture)
-            self._frames.append(frame)
+            self._frames.append(frame_of(message, self.detector, self.model.camera, self.diameter))
 
     def stop_reason(self, t: float) -> str:
         """Why the commands are zero at ``t`` [s]; empty when the controller runs."""
@@ -262,13 +295,9 @@ class ControlNode(Node):
 
     def _controller_step(self, t: float):
         """Step the controller with the newest readings, frame and scan."""
-        _, arm, arm_rates = self._joints
-        _, planar, base = self._odom
-        q = messages.configuration(self.model, planar, arm)
-        v = np.concatenate([base, arm_rates])
-        ready = [f for f in self._frames if f.capture_time <= t]
-        self._frames = [f for f in self._frames if f.capture_time > t]
-        frame = ready[-1] if ready else None
+        q, v, frame, self._frames = step_inputs(
+            self.model, self._joints[1:], self._odom[1:], self._frames, t
+        )
         laser, self._laser = self._laser, None
         return self.controller.step(t, q, v, frame, laser)
 
