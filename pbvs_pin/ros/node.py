@@ -16,6 +16,10 @@ or a remap moves them):
   the ``arm_joints`` parameter), ``diagnostics`` (``diagnostic_msgs/DiagnosticArray``:
   feature error, seen, lost, frame age, saturation, or why the commands are zero).
 
+With the ``wait_for_readings`` parameter (for a simulated robot in lockstep on ``/clock``),
+a step whose ``joint_states`` and ``odom`` are not yet stamped with its time runs when they
+come, instead of on the readings of the period before.
+
 Safety: the published commands are exactly zero at the next control step (within one
 period) when ``joint_states`` or ``odom`` is older than ``sensor_timeout`` [s] (or never
 came), when the e-stop is set, after bad input (the project's error is logged; no callback
@@ -53,6 +57,10 @@ SENSOR_TIMEOUT = 0.05
 
 WAKE = 0.05
 """Longest wait [s] of wall-clock time inside ROS, so that SIGINT and SIGTERM are handled."""
+
+STAMP_TOLERANCE = 1e-6
+"""Difference [s] below which a reading's stamp is the clock's time (seconds and
+nanoseconds summed two ways differ in the last bits)."""
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 """The signals that stop the node (zero commands first)."""
@@ -133,8 +141,9 @@ class ControlNode(Node):
     """The controller as a ROS 2 node (module docstring).
 
     Parameters (ROS): ``arm_joints`` (string array, the order of the arm command; the arm's
-    joints by default), ``sensor_timeout`` [s], ``use_sim_time``, and any scenario key by
-    its dotted name (``-p estimator.hold:=0.5``), applied to the scenario at start.
+    joints by default), ``sensor_timeout`` [s], ``wait_for_readings`` (bool), ``use_sim_time``,
+    and any scenario key by its dotted name (``-p estimator.hold:=0.5``), applied to the
+    scenario at start.
 
     Args:
         scenario: Gives the robot, the controller's settings and the detector
@@ -167,6 +176,9 @@ class ControlNode(Node):
         names = self._parameter("arm_joints", list(self.arm_joints))
         self.order = arm_order(list(names), self.arm_joints)
         self.sensor_timeout = float(self._parameter("sensor_timeout", SENSOR_TIMEOUT))
+        self.wait_for_readings = bool(self._parameter("wait_for_readings", False))
+        self._stamps = {"joint_states": -np.inf, "odom": -np.inf}  # header stamps [s]
+        self._due: float | None = None  # a step waiting for its readings
         self.detector = detector_from(scenario.camera.detector, model.camera)
         self.diameter = scenario.target.diameter
         self._joints: tuple[float, np.ndarray, np.ndarray] | None = None  # (arrival, pos, vel)
@@ -215,10 +227,24 @@ class ControlNode(Node):
     def _on_joints(self, message: JointState) -> None:
         with self._guard("joint_states"):
             self._joints = (self.now(), *messages.arm_reading(message, self.arm_joints))
+            self._arrived("joint_states", message)
 
     def _on_odom(self, message: Odometry) -> None:
         with self._guard("odom"):
             self._odom = (self.now(), *messages.platform_reading(message, self.n_base))
+            self._arrived("odom", message)
+
+    def _arrived(self, topic: str, message: JointState | Odometry) -> None:
+        """Note a reading's stamp; run the step that waits for it once both are there."""
+        self._stamps[topic] = messages.seconds(message.header.stamp)
+        if self._due is not None and min(self._stamps.values()) >= self._due - STAMP_TOLERANCE:
+            self.step()
+
+    def _waits(self, t: float) -> bool:
+        """With ``wait_for_readings``: the step at ``t`` waits for readings stamped ``t``."""
+        late = self.wait_for_readings and min(self._stamps.values()) < t - STAMP_TOLERANCE
+        self._due = t if late else None
+        return late
 
     def _on_scan(self, message: LaserScan) -> None:
         with self._guard("scan"):
@@ -267,9 +293,12 @@ class ControlNode(Node):
                 self.controller.reset()
                 self._joints = self._odom = self._laser = None
                 self._frames, self._t = [], -np.inf
+                self._stamps = dict.fromkeys(self._stamps, -np.inf)
             reason = self.stop_reason(t)
             if reason:
                 self.publish_zero(t, reason)
+                return
+            if self._waits(t):
                 return
             command = self._controller_step(t)
         except Exception as err:  # a callback never raises: zero commands and the error logged
