@@ -4,6 +4,8 @@ the docs' table."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -27,7 +29,9 @@ from pbvs_pin.sim.obstacles import BoxObstacle
 from pbvs_pin.sim.render import SceneRenderer
 from pbvs_pin.sim.rendered_camera import ImageEffects, RenderedCamera
 from pbvs_pin.sim.scenario import load_scenario, parse_scenario
+from pbvs_pin.sim.sections import RobotSection
 from pbvs_pin.sim.setup import build
+from pbvs_pin.validation import read_toml
 
 CAMERA = CameraIntrinsics(600.0, 628, 582)
 DIAMETER = 0.05
@@ -262,3 +266,36 @@ def test_obstacle_without_a_drawing_is_refused(robot):
 
     with pytest.raises(RenderingUnavailable, match="no drawing for obstacle"):
         SceneRenderer(robot, CAMERA, DIAMETER, [Cone()])
+
+
+ROBOT_FILES = ("tiago_pro",)
+
+
+@pytest.mark.parametrize("name", ["pioneer_cyton", *ROBOT_FILES])  # differential, holonomic
+def test_scene_places_the_robot_where_pinocchio_does(name):
+    """The drawn robot's camera link is where the controller's model puts it.
+
+    MuJoCo's kinematics of the scene (its own reading of the URDF) against Pinocchio's
+    ``camera_pose``, the platform moved and turned: a holonomic base has its planar joint at
+    its own root link, not at a drive footprint (it raised AttributeError before).
+    """
+    if name in ROBOT_FILES:  # a zoo robot file
+        path = REPO_ROOT / "robots" / f"{name}.toml"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # placement warnings
+            table = read_toml(path, "robot file")["robot"]
+            robot = RobotSection.from_toml(table, str(path)).build(CAMERA)
+    else:
+        robot = load_robot(name, CAMERA)
+    renderer = SceneRenderer(robot, CAMERA, DIAMETER, [])
+    try:
+        q = robot.home()
+        q[:4] = [1.2, -0.7, np.cos(0.8), np.sin(0.8)]
+        renderer.render(q, EYE, pair([1.0, 0.0, 0.5]))
+        link = robot.model.frames[robot.camera_frame_id].name
+        body = renderer.model.body(link).id
+        pose = robot.camera_pose(q)
+        assert np.allclose(renderer.data.xpos[body], pose.translation, atol=1e-6)
+        assert np.allclose(renderer.data.xmat[body].reshape(3, 3), pose.rotation, atol=1e-6)
+    finally:
+        renderer.close()

@@ -289,3 +289,44 @@ def test_the_simulated_robot_stops_when_commands_stop_coming():
     assert applied_command(1.05, None, arm, 0.1, 2, 5).tolist() == [0.0, 0.0, 0.3, 0.0, -0.3]
     bad = (1.0, np.array([np.nan, 0.1]))
     assert applied_command(1.05, bad, None, 0.1, 2, 5).tolist() == [0.0] * 5
+
+
+def test_a_step_waits_for_readings_stamped_with_its_time(stand_in, monkeypatch):
+    """``wait_for_readings``: a step whose joint_states and odom are not yet those of its
+    time runs when both come (at 1.15 and 1.16 s a stamp summed from sec and nanosec is below
+    the clock's time, summed from nanoseconds, in its last bit: the tolerance covers it)."""
+    from rclpy.parameter import Parameter
+
+    from pbvs_pin.ros import messages
+    from pbvs_pin.ros.node import ControlNode
+
+    control = ControlNode(
+        pbvs_pin.load_scenario("experiment1"), [Parameter("wait_for_readings", value=True)]
+    )
+    first, second = 115 * PERIOD, 116 * PERIOD  # as the node's clock has them
+    sent, clock = [], [first]
+    monkeypatch.setattr(control, "now", lambda: clock[0])
+    monkeypatch.setattr(control, "_publish", lambda v_ref: sent.append((clock[0], v_ref)))
+    names, arm = control.arm_joints, control.model.home_arm
+    rates, base = np.full(len(names), 0.1), np.array([0.1, 0.05])
+
+    def reading(topic: str, t: float) -> None:
+        if topic == "joint_states":
+            control._on_joints(messages.joint_state(t, names, arm + rates * t, rates))
+        else:
+            control._on_odom(messages.odometry(t, [0.1 * t, 0.0, 0.0], base, "odom", "base"))
+
+    try:
+        reading("joint_states", first)
+        reading("odom", first)
+        control.step()
+        assert [t for t, _ in sent] == [first]
+        clock[0] = second
+        control.step()  # its readings have not come
+        reading("joint_states", second)
+        assert len(sent) == 1
+        reading("odom", second)  # now both have: the step runs
+        assert [t for t, _ in sent] == [first, second]
+        assert not control._bad and control._t == second
+    finally:
+        control.destroy_node()

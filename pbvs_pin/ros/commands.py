@@ -17,7 +17,7 @@ from types import ModuleType
 
 import numpy as np
 
-from pbvs_pin.exceptions import RosUnavailable
+from pbvs_pin.exceptions import GainError, RosUnavailable
 from pbvs_pin.outputs import Output
 
 DEFAULT_SCENARIO = "experiment1"
@@ -110,6 +110,16 @@ def add_arguments(parser: argparse.ArgumentParser, output: Callable, scenario_of
     output(sim, "--summary", Output.FILE, help="write the true feature error here (JSON)")
     sim.add_argument("--ros-args", **ros_args)
     sim.set_defaults(handler=partial(_sim, scenario_of=scenario_of))
+    replay = commands.add_parser(
+        "replay-bag", help="step the controller on a recorded bag; compare with its commands"
+    )
+    replay.add_argument("bag", help="a bag written by pbvs-pin ros sim --bag")
+    replay.add_argument("robot", help="the node's scenario or robot, as for ros control")
+    replay.add_argument("--set", **setting)
+    replay.add_argument(
+        "--lag", type=int, default=0, help="step on the readings of LAG periods before (0)"
+    )
+    replay.set_defaults(handler=partial(_replay, scenario_of=scenario_of))
 
 
 def control_scenario(args: argparse.Namespace, scenario_of: Callable):
@@ -199,3 +209,12 @@ def _sim(args: argparse.Namespace, scenario_of: Callable) -> None:
             }
         )
     )
+
+
+def _replay(args: argparse.Namespace, scenario_of: Callable) -> None:
+    """Print the comparison of the replayed and recorded commands (JSON)."""
+    replay_module = ros_module("replay")
+    if args.lag < 0:
+        raise GainError(f"--lag: expected 0 or more periods, got {args.lag}", "lag")
+    scenario = control_scenario(args, scenario_of)
+    print(json.dumps(replay_module.replay_bag(args.bag, scenario, args.lag)))

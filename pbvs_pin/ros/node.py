@@ -16,6 +16,10 @@ or a remap moves them):
   the ``arm_joints`` parameter), ``diagnostics`` (``diagnostic_msgs/DiagnosticArray``:
   feature error, seen, lost, frame age, saturation, or why the commands are zero).
 
+With the ``wait_for_readings`` parameter (for a simulated robot in lockstep on ``/clock``),
+a step whose ``joint_states`` and ``odom`` are not yet stamped with its time runs when they
+come, instead of on the readings of the period before.
+
 Safety: the published commands are exactly zero at the next control step (within one
 period) when ``joint_states`` or ``odom`` is older than ``sensor_timeout`` [s] (or never
 came), when the e-stop is set, after bad input (the project's error is logged; no callback
@@ -54,6 +58,10 @@ SENSOR_TIMEOUT = 0.05
 WAKE = 0.05
 """Longest wait [s] of wall-clock time inside ROS, so that SIGINT and SIGTERM are handled."""
 
+STAMP_TOLERANCE = 1e-6
+"""Difference [s] below which a reading's stamp is the clock's time (seconds and
+nanoseconds summed two ways differ in the last bits)."""
+
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 """The signals that stop the node (zero commands first)."""
 
@@ -88,12 +96,54 @@ def scenario_keys(node: Node) -> dict[str, object]:
     }
 
 
+def frame_of(message: Image, detector, camera, diameter: float) -> CameraFrame:
+    """The frame of an image: the detector's spheres, stamped with ``header.stamp``.
+
+    Args:
+        message: The image (``rgb8`` or ``bgr8``).
+        detector: Finds the spheres (:func:`pbvs_pin.sim.detection.detector_from`).
+        camera: The controller's intrinsics.
+        diameter: The spheres' diameter [m].
+
+    Raises:
+        ControlInputError: If the image's encoding or size is not one the node reads.
+    """
+    capture = messages.seconds(message.header.stamp)
+    points, diameters, visible = detector.detect(messages.image_array(message))
+    if not visible:
+        return CameraFrame.not_visible(capture)
+    return CameraFrame.from_diameters(capture, points, diameters, camera, diameter)
+
+
+def step_inputs(model, joints: tuple, odom: tuple, frames: list[CameraFrame], t: float) -> tuple:
+    """What the controller steps on at ``t`` [s], from the newest readings.
+
+    Args:
+        model: The controller's robot model.
+        joints: Arm positions and rates, shape (n_arm,) each (:func:`messages.arm_reading`).
+        odom: Platform pose and velocity (:func:`messages.platform_reading`).
+        frames: The frames not used yet, oldest first.
+        t: The step's time [s].
+
+    Returns:
+        ``q`` (shape (nq,)), ``v`` (shape (n,)), the newest frame captured by ``t`` (None),
+        and the frames captured after ``t``, kept for a later step.
+    """
+    arm, arm_rates = joints
+    planar, base = odom
+    q = messages.configuration(model, planar, arm)
+    v = np.concatenate([base, arm_rates])
+    ready = [f for f in frames if f.capture_time <= t]
+    return q, v, ready[-1] if ready else None, [f for f in frames if f.capture_time > t]
+
+
 class ControlNode(Node):
     """The controller as a ROS 2 node (module docstring).
 
     Parameters (ROS): ``arm_joints`` (string array, the order of the arm command; the arm's
-    joints by default), ``sensor_timeout`` [s], ``use_sim_time``, and any scenario key by
-    its dotted name (``-p estimator.hold:=0.5``), applied to the scenario at start.
+    joints by default), ``sensor_timeout`` [s], ``wait_for_readings`` (bool), ``use_sim_time``,
+    and any scenario key by its dotted name (``-p estimator.hold:=0.5``), applied to the
+    scenario at start.
 
     Args:
         scenario: Gives the robot, the controller's settings and the detector
@@ -126,6 +176,9 @@ class ControlNode(Node):
         names = self._parameter("arm_joints", list(self.arm_joints))
         self.order = arm_order(list(names), self.arm_joints)
         self.sensor_timeout = float(self._parameter("sensor_timeout", SENSOR_TIMEOUT))
+        self.wait_for_readings = bool(self._parameter("wait_for_readings", False))
+        self._stamps = {"joint_states": -np.inf, "odom": -np.inf}  # header stamps [s]
+        self._due: float | None = None  # a step waiting for its readings
         self.detector = detector_from(scenario.camera.detector, model.camera)
         self.diameter = scenario.target.diameter
         self._joints: tuple[float, np.ndarray, np.ndarray] | None = None  # (arrival, pos, vel)
@@ -174,10 +227,24 @@ class ControlNode(Node):
     def _on_joints(self, message: JointState) -> None:
         with self._guard("joint_states"):
             self._joints = (self.now(), *messages.arm_reading(message, self.arm_joints))
+            self._arrived("joint_states", message)
 
     def _on_odom(self, message: Odometry) -> None:
         with self._guard("odom"):
             self._odom = (self.now(), *messages.platform_reading(message, self.n_base))
+            self._arrived("odom", message)
+
+    def _arrived(self, topic: str, message: JointState | Odometry) -> None:
+        """Note a reading's stamp; run the step that waits for it once both are there."""
+        self._stamps[topic] = messages.seconds(message.header.stamp)
+        if self._due is not None and min(self._stamps.values()) >= self._due - STAMP_TOLERANCE:
+            self.step()
+
+    def _waits(self, t: float) -> bool:
+        """With ``wait_for_readings``: the step at ``t`` waits for readings stamped ``t``."""
+        late = self.wait_for_readings and min(self._stamps.values()) < t - STAMP_TOLERANCE
+        self._due = t if late else None
+        return late
 
     def _on_scan(self, message: LaserScan) -> None:
         with self._guard("scan"):
@@ -197,15 +264,7 @@ class ControlNode(Node):
         with self._guard("camera/image_raw"):
             if self._camera_problem:
                 return
-            capture = messages.seconds(message.header.stamp)
-            points, diameters, visible = self.detector.detect(messages.image_array(message))
-            if visible:
-                frame = CameraFrame.from_diameters(
-                    capture, points, diameters, self.model.camera, self.diameter
-                )
-            else:
-                frame = CameraFrame.not_visible(capture)
-            self._frames.append(frame)
+            self._frames.append(frame_of(message, self.detector, self.model.camera, self.diameter))
 
     def stop_reason(self, t: float) -> str:
         """Why the commands are zero at ``t`` [s]; empty when the controller runs."""
@@ -234,9 +293,12 @@ class ControlNode(Node):
                 self.controller.reset()
                 self._joints = self._odom = self._laser = None
                 self._frames, self._t = [], -np.inf
+                self._stamps = dict.fromkeys(self._stamps, -np.inf)
             reason = self.stop_reason(t)
             if reason:
                 self.publish_zero(t, reason)
+                return
+            if self._waits(t):
                 return
             command = self._controller_step(t)
         except Exception as err:  # a callback never raises: zero commands and the error logged
@@ -262,13 +324,9 @@ class ControlNode(Node):
 
     def _controller_step(self, t: float):
         """Step the controller with the newest readings, frame and scan."""
-        _, arm, arm_rates = self._joints
-        _, planar, base = self._odom
-        q = messages.configuration(self.model, planar, arm)
-        v = np.concatenate([base, arm_rates])
-        ready = [f for f in self._frames if f.capture_time <= t]
-        self._frames = [f for f in self._frames if f.capture_time > t]
-        frame = ready[-1] if ready else None
+        q, v, frame, self._frames = step_inputs(
+            self.model, self._joints[1:], self._odom[1:], self._frames, t
+        )
         laser, self._laser = self._laser, None
         return self.controller.step(t, q, v, frame, laser)
 

@@ -95,7 +95,9 @@ def scene_spec(
                 spec.delete(geom)
             else:
                 geom.group = 0
-    spec.body(frames.DRIVE_FOOTPRINT).add_freejoint(name=frames.DRIVE_FOOTPRINT)
+    # the model's planar joint sits at the URDF's root link: the drive footprint of a
+    # differential drive, the platform's own root link on a holonomic base
+    spec.worldbody.first_body().add_freejoint(name=frames.DRIVE_FOOTPRINT)
     for index, hue in enumerate(SPHERE_HUES):
         body = spec.worldbody.add_body(name=f"sphere{index}", mocap=True)
         body.add_geom(
