@@ -18,8 +18,9 @@ motion, ``sigma sqrt(g / (2 - g))``, within :data:`NOISE_BUDGET_PX` is
 
 .. math:: g_{max} = \frac{2 b^2}{\sigma^2 + b^2}
 
-(:func:`noise_margin`): above 1, so without effect, for ``sigma < b`` (the experiments'
-0.5 px); 0.25 at 4 px. The net's other margins (:func:`pbvs_pin.control.upright.delayed_margin`)
+(:func:`noise_margin`), for ``sigma > b`` only: 1 at ``sigma = b``, 0.25 at 4 px. Below the
+budget (the experiments' 0.5 px) there is no cap at all, so a ``loop_gain_margin`` raised
+above 1 (the net switched off) stays as it was. The net's other margins (:func:`pbvs_pin.control.upright.delayed_margin`)
 still apply; the smaller one wins. Lowering the margin scales the feature gains by a positive
 factor, as the existing cap does, so the passivity argument (docs ``theory``) is unchanged:
 the storage function's decrease needs positive-definite gains, not their size.
@@ -46,9 +47,10 @@ amount (the gate already refuses frames far from their prediction)."""
 def noise_margin(noise_px: float, budget_px: float = NOISE_BUDGET_PX) -> float:
     """The per-sample loop gain that passes ``budget_px`` of ``noise_px`` into the motion.
 
-    ``2 b^2 / (sigma^2 + b^2)`` (module docstring); ``inf`` for no noise measured.
+    ``2 b^2 / (sigma^2 + b^2)`` (module docstring); ``inf`` (no cap) for ``sigma <= b``, and
+    for no noise measured (0).
     """
-    if not noise_px > 0:
+    if not noise_px > budget_px:
         return float("inf")
     return 2.0 * budget_px**2 / (noise_px**2 + budget_px**2)
 
