@@ -20,10 +20,11 @@ motion, ``sigma sqrt(g / (2 - g))``, within :data:`NOISE_BUDGET_PX` is
 
 (:func:`noise_margin`), for ``sigma > b`` only: 1 at ``sigma = b``, 0.25 at 4 px. Below the
 budget (the experiments' 0.5 px) there is no cap at all, so a ``loop_gain_margin`` raised
-above 1 (the net switched off) stays as it was. The net's other margins (:func:`pbvs_pin.control.upright.delayed_margin`)
-still apply; the smaller one wins. Lowering the margin scales the feature gains by a positive
-factor, as the existing cap does, so the passivity argument (docs ``theory``) is unchanged:
-the storage function's decrease needs positive-definite gains, not their size.
+above 1 (the net switched off) stays as it was. The net's other margins
+(:func:`pbvs_pin.control.upright.delayed_margin`) still apply; the smaller one wins.
+Lowering the margin scales the feature gains by a positive factor, as the existing cap does,
+so the passivity argument (docs ``theory``) is unchanged: the storage function's decrease
+needs positive-definite gains, not their size.
 """
 
 from __future__ import annotations
