@@ -446,16 +446,25 @@ class Controller:
                 return fault
         self._newest_capture = capture
         self._observe_latency(t - capture)
-        return self.tracker.take(measurement, capture, q_capture, velocity) or rejected
+        reason = self.tracker.take(measurement, capture, q_capture, velocity)
+        self._set_margin()
+        return reason or rejected
 
     def _observe_latency(self, latency: float) -> None:
-        """Set the loop-gain margin for the frames' latency (without prediction)."""
+        """Note the frames' latency: it sets the loop-gain margin (without prediction)."""
         latency = round(latency / LATENCY_RESOLUTION) * LATENCY_RESOLUTION
         self._latency_seen = latency
-        if latency == self.latency or self.settings.estimator.predict:
+        if latency != self.latency and not self.settings.estimator.predict:
+            self.latency = latency
+
+    def _set_margin(self) -> None:
+        """Set the loop-gain margin for the latency and the measured pixel noise.
+
+        :func:`~pbvs_pin.control.settings.loop_gain_margin`; only a change of 1e-3 or more.
+        """
+        margin = loop_gain_margin(self.settings, self.latency, self.tracker.noise.noise_px)
+        if abs(margin - self.law.gains.loop_gain_margin) < 1e-3:
             return
-        self.latency = latency
-        margin = loop_gain_margin(self.settings, latency)
         gains = replace(self.law.gains, loop_gain_margin=margin)
         self.law.gains, self.law.safety = gains, self.law.safety._replace(loop_gain_margin=margin)
         if self.fused is not None:

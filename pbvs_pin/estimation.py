@@ -11,7 +11,9 @@ The gains can be given directly or from Kalata's tracking index
 ``Lambda = sigma_w T^2 / sigma_n`` (ref. [33]). :class:`AdaptiveAlphaBetaFilter` measures
 ``sigma_n`` online, per world axis, and sets the gains from it (issue 31: 4 px of pixel noise
 is 2.4 cm of depth noise at 0.5 m, which the fixed gains 0.5, 0.1 pass to the velocity as
-about 0.08 m/s; ``estimator.process_noise`` selects it, off by default: docs ``faults.md``).
+about 0.08 m/s; ``estimator.process_noise`` > 0 selects it, the default 0.03: docs
+``faults.md``). A manoeuvre detector raises its gains back toward the stated ones when the
+target stops or turns.
 
 The estimated speed is clamped to ``max_speed`` (:data:`MAX_TARGET_SPEED` by default): a
 measurement that slipped past the controller's gate, or two frames a microsecond apart, move
@@ -160,6 +162,36 @@ MAX_NOISE = 1.0
 finite, and one glitch's share of it bounded."""
 
 
+def innovation_spread(
+    alpha: npt.ArrayLike, beta: npt.ArrayLike, noise: npt.ArrayLike
+) -> np.ndarray:
+    r"""Steady-state spread of an alpha-beta tracker's residual, elementwise [m].
+
+    For a target at constant velocity seen through white noise ``sigma_n``: the residual is
+    the noise plus the one-step prediction's error, whose variance is
+    ``sigma_n^2 (2 alpha^2 + alpha beta + 2 beta) / (alpha (4 - 2 alpha - beta))``:
+
+    .. math:: \sigma_r = \sigma_n \sqrt{1 + \frac{2\alpha^2 + \alpha\beta + 2\beta}
+              {\alpha (4 - 2\alpha - \beta)}}
+    """
+    a, b = np.asarray(alpha, dtype=float), np.asarray(beta, dtype=float)
+    return np.asarray(noise) * np.sqrt(1.0 + (2 * a * a + a * b + 2 * b) / (a * (4 - 2 * a - b)))
+
+
+MANOEUVRE_MEMORY = 0.8
+"""Memory of the manoeuvre detector's average of the normalised innovation, per frame (an
+exponential window of 5 frames). For a white innovation of unit variance the average's
+standard deviation is ``sqrt((1 - m) / (1 + m))`` = 1/3."""
+
+MANOEUVRE_THRESHOLD = 1.5
+"""The detector's threshold on the averaged normalised innovation: 4.5 of its standard
+deviations in steady state (a false alarm about once in 3e5 frames of white innovation)."""
+
+MANOEUVRE_DECAY = 0.9
+"""After the detector fires the gains jump to the stated ones and return to the steady state's
+by this factor per frame (a time constant of 10 frames)."""
+
+
 class AdaptiveAlphaBetaFilter(AlphaBetaFilter):
     r"""Alpha-beta tracker whose gains follow the measurement noise it measures.
 
@@ -186,6 +218,15 @@ class AdaptiveAlphaBetaFilter(AlphaBetaFilter):
     have given differences, the stated gains are used. :meth:`reset` forgets the track, not
     the noise estimate (a property of the camera).
 
+    **Manoeuvres.** Low gains follow a stop or a turn slowly. Each residual is divided by its
+    steady-state spread for the gains in use (:func:`innovation_spread`), and the quotient
+    (:attr:`innovation`, unit variance on a constant-velocity track) is averaged over about
+    five frames (:data:`MANOEUVRE_MEMORY`). When the average leaves
+    ``+-`` :data:`MANOEUVRE_THRESHOLD` on any axis (the target changed its velocity, a single
+    event for the whole target), every axis's gains jump to the stated ``alpha``, ``beta``
+    and return to the steady state's by :data:`MANOEUVRE_DECAY` per frame, as a Kalman
+    filter's covariance inflated by the manoeuvre would decay (:attr:`manoeuvres` counts them).
+
     Args:
         alpha: Largest position gain, ``0 < alpha <= 1``.
         beta: Largest velocity gain, ``0 < beta < 4 - 2 alpha``.
@@ -210,12 +251,19 @@ class AdaptiveAlphaBetaFilter(AlphaBetaFilter):
         """The newest update's ``(alpha, beta)`` per world axis. Shapes (3,), (3,)."""
         self._variance = np.zeros(3)
         self._differences = 0
+        self.manoeuvres = 0
+        """Manoeuvres detected since construction (each start of a boost counts once)."""
         super().__init__(alpha, beta, max_speed)
 
     def reset(self) -> None:
         """Forget the track (not the noise estimate): the next measurement starts afresh."""
         super().reset()
         self._history: list[tuple[float, np.ndarray]] = []
+        self._drift = np.zeros(3)
+        self._boost = np.zeros(3)
+        self.innovation = np.zeros(3)
+        """The newest residual over its steady-state spread (:func:`innovation_spread`) per
+        world axis; 0 until the gains adapt. Shape (3,)."""
 
     @property
     def noise(self) -> np.ndarray:
@@ -239,9 +287,17 @@ class AdaptiveAlphaBetaFilter(AlphaBetaFilter):
         if self._differences < NOISE_WINDOW / 6:
             return self.gains
         period = time - self._time
-        index = self.process_noise * period**2 / np.maximum(self.noise, 1e-12)
-        alpha, beta = kalata_gains(index)
-        self.gains = np.minimum(alpha, self.alpha), np.minimum(beta, self.beta)
+        noise = np.maximum(self.noise, 1e-12)
+        alpha, beta = kalata_gains(self.process_noise * period**2 / noise)
+        alpha, beta = np.minimum(alpha, self.alpha), np.minimum(beta, self.beta)
+        residual = measured - self._position - period * self._velocity
+        self.innovation = np.clip(residual / innovation_spread(alpha, beta, noise), -1e3, 1e3)
+        self._drift += (1.0 - MANOEUVRE_MEMORY) * (self.innovation - self._drift)
+        manoeuvre = np.abs(self._drift) > MANOEUVRE_THRESHOLD
+        self.manoeuvres += int(manoeuvre.any() and not (self._boost > 0.5).any())
+        self._boost = np.where(manoeuvre.any(), 1.0, MANOEUVRE_DECAY * self._boost)
+        boost = self._boost
+        self.gains = alpha + boost * (self.alpha - alpha), beta + boost * (self.beta - beta)
         return self.gains
 
 

@@ -210,7 +210,8 @@ def map_section(rows: list[dict[str, Any]], figure: str = "robustness.png") -> s
         "## Robustness map: each camera fault alone, Experiment 1",
         "",
         "Each fault raised alone (sizes in `pbvs_pin/sweeps/robustness.toml`), without and with "
-        "the estimator's fault handling (prediction along eq. (3), 1.5 s hold, smoothing 0.2; "
+        "the estimator's fault handling (prediction along eq. (3), 1.5 s hold, smoothing 0.2, "
+        "noise-adaptive velocity filter; "
         "not the dynamic compensation of eq. (20)). Broken: max "
         "|error| over the last 5 s above 10 px, or the target lost then.",
         "",

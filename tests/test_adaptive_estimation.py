@@ -16,7 +16,13 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from pbvs_pin.estimation import AdaptiveAlphaBetaFilter, AlphaBetaFilter, velocity_filter
+from pbvs_pin import estimation
+from pbvs_pin.estimation import (
+    AdaptiveAlphaBetaFilter,
+    AlphaBetaFilter,
+    innovation_spread,
+    velocity_filter,
+)
 from pbvs_pin.exceptions import GainError, ScenarioError
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
@@ -134,7 +140,7 @@ def test_four_pixels_of_noise_hold_in_closed_loop_with_the_default_settings():
     """Experiment 1 at 4 px for 20 s (the target still moving): within its 8 px rule, and the
     velocity estimate within 0.04 m/s RMS (fixed gains: 0.13 m/s)."""
     scenario = load_scenario("experiment1").with_values(
-        **{"camera.noise_px": 4.0, "duration": 20.0, "estimator.process_noise": 0.03}
+        **{"camera.noise_px": 4.0, "duration": 20.0}
     )
     log = simulate(scenario)
     summary = summarize(log)
@@ -143,3 +149,59 @@ def test_four_pixels_of_noise_hold_in_closed_loop_with_the_default_settings():
     error = log["target_velocity_estimate"][late] - log["target_velocity"][late]
     assert np.isfinite(error).all()
     assert np.sqrt(np.mean(np.sum(error**2, axis=1))) < 0.04
+
+
+@pytest.mark.parametrize(("alpha", "beta"), [(0.5, 0.1), (0.15, 0.012), (0.05, 0.0015)])
+def test_innovation_spread_matches_a_seeded_simulation_of_the_tracker(alpha, beta):
+    """The residual's steady-state spread on white noise, against a plain alpha-beta loop."""
+    rng = np.random.default_rng(17)
+    noise = rng.standard_normal(200_000)
+    position = velocity = 0.0
+    residuals = np.empty(noise.size)
+    for k, measured in enumerate(noise):  # unit period, target at rest: residual is noise-only
+        predicted = position + velocity
+        residuals[k] = measured - predicted
+        position, velocity = predicted + alpha * residuals[k], velocity + beta * residuals[k]
+    assert residuals[2000:].std() == pytest.approx(
+        float(innovation_spread(alpha, beta, 1.0)), rel=0.02
+    )
+
+
+def test_normalised_innovation_is_unit_and_no_manoeuvre_is_seen_on_a_constant_velocity():
+    filt = AdaptiveAlphaBetaFilter()
+    rng = np.random.default_rng(23)
+    innovations = []
+    for k in range(6000):
+        t = k * PERIOD
+        filt.update(START + VELOCITY * t + NOISE * rng.standard_normal(3), t)
+        if t > 5.0:
+            innovations.append(filt.innovation)
+    spread = np.array(innovations).std(axis=0)
+    np.testing.assert_allclose(spread, 1.0, rtol=0.15)  # the noise estimate's own spread
+    assert filt.manoeuvres <= 1  # at most the track's start (the estimate begins at rest)
+
+
+def _stop_errors(threshold, monkeypatch, noise):
+    """Velocity errors [m/s] of a target that stops at 10 s, from 10.5 to 12 s; detections."""
+    monkeypatch.setattr(estimation, "MANOEUVRE_THRESHOLD", threshold)
+    filt = AdaptiveAlphaBetaFilter()
+    rng = np.random.default_rng(29)
+    errors = []
+    for k in range(int(14.0 / PERIOD)):
+        t = k * PERIOD
+        filt.update(START + VELOCITY * min(t, 10.0) + noise * rng.standard_normal(3), t)
+        if 10.5 <= t <= 12.0:
+            errors.append(filt.velocity)  # the target is at rest: the estimate is the error
+    return np.sqrt(np.mean(np.sum(np.array(errors) ** 2, axis=1))), filt.manoeuvres
+
+
+@pytest.mark.parametrize(("scale", "ratio"), [(1.0, 0.5), (8.0, 0.9)])
+def test_a_stop_is_detected_and_followed_faster_than_by_the_steady_gains(scale, ratio, monkeypatch):
+    """At 0.5 px and 4 px (8 times the noise): the detector fires on the stop, and the velocity
+    error over the 1.5 s after it is below ``ratio`` times the steady-state gains' (0.5 px: a
+    quarter in this seed; 4 px: the stated gains pass more noise, 0.87)."""
+    noise = scale * np.array([0.003, 0.0004, 0.0004])  # Experiment 1's depth, lateral at 0.5 px
+    detected, count = _stop_errors(estimation.MANOEUVRE_THRESHOLD, monkeypatch, noise)
+    steady, never = _stop_errors(np.inf, monkeypatch, noise)
+    assert never == 0 and count >= 1
+    assert detected < ratio * steady

@@ -17,6 +17,7 @@ import numpy as np
 from pbvs_pin.control.compensation import Compensation, DynamicCompensator
 from pbvs_pin.control.ibvs import ClassicIbvs
 from pbvs_pin.control.kinematic import PassivityController, ServoGains
+from pbvs_pin.control.noise import noise_margin
 from pbvs_pin.control.secondary import (
     ArmPosture,
     JointLimitAvoidance,
@@ -130,10 +131,14 @@ def per_dof(settings: ControllerSettings, field: str, values: tuple, n: int) -> 
     return array
 
 
-def loop_gain_margin(settings: ControllerSettings, latency: float) -> float:
-    """The net's margin for frames ``latency`` [s] old on arrival (0 when they are predicted)."""
+def loop_gain_margin(settings: ControllerSettings, latency: float, noise_px: float = 0.0) -> float:
+    """The net's margin for frames ``latency`` [s] old on arrival (0 when they are predicted).
+
+    Lowered for the measured pixel noise ``noise_px`` [px] (0: none measured;
+    :func:`pbvs_pin.control.noise.noise_margin`).
+    """
     delay = 0.0 if settings.estimator.predict else latency / settings.sample_period
-    return delayed_margin(settings.controller.loop_gain_margin, delay)
+    return min(delayed_margin(settings.controller.loop_gain_margin, delay), noise_margin(noise_px))
 
 
 def kinematic_law(

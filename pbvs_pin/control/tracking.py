@@ -24,6 +24,9 @@ capture time and the encoders at that time.
   low-passed, by a first-order filter with pole ``1 - w`` at the frame rate ``f_s``: a
   bandwidth of ``-ln(1 - w) f_s / (2 pi)`` (0.2 at 30 Hz: 1.07 Hz) and a white-noise standard
   deviation reduced by ``sqrt(w / (2 - w))`` (0.2: a third). ``w = 1`` is no filter.
+- **noise** (:mod:`pbvs_pin.control.noise`): each frame used is compared with the previous raw
+  frame brought up to its capture; the second difference of that innovation measures the
+  detector's pixel noise online (:attr:`TargetTracker.noise`), which lowers the loop gain.
 - **gate** (outliers): a new frame is first compared with the same prediction by the
   innovation gate of :mod:`pbvs_pin.control.gating`; a frame that fails it is not used, and
   the last of :data:`~pbvs_pin.control.gating.RESTART_AFTER` failures in a row restarts the
@@ -37,6 +40,7 @@ from numba import njit
 
 from pbvs_pin.camera import MIN_DEPTH, back_project_points, project_points
 from pbvs_pin.control.gating import InnovationGate
+from pbvs_pin.control.noise import PixelNoise
 from pbvs_pin.estimation import VelocityEstimator
 from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.robot import MobileManipulator
@@ -92,6 +96,7 @@ class TargetTracker:
             measurement.
         world: The newest measurement's points in the world, where its frame saw them [m].
             Shape (k, 3).
+        noise: The pixel noise measured on the frames used (:mod:`pbvs_pin.control.noise`).
     """
 
     def __init__(
@@ -114,6 +119,9 @@ class TargetTracker:
         self.predicting = False
         self.prediction: ImageMeasurement | None = None
         self.world = np.zeros((0, 3))
+        self._raw_world = self.world
+        """The newest raw (unsmoothed) frame's points in the world [m]. Shape (k, 3)."""
+        self.noise = PixelNoise()
         self._focal = model.camera.focal_px
 
     def take(
@@ -156,8 +164,10 @@ class TargetTracker:
             if restart:
                 self.estimator.reset()
                 prior = None
+        self._measure_noise(measurement, prior, capture_time, q_capture, velocity)
         self.lost = False
         model = self.model
+        raw = measurement
         if self.smoothing < 1 and prior is not None:
             measurement = ImageMeasurement(
                 prior.points + self.smoothing * (measurement.points - prior.points),
@@ -171,8 +181,28 @@ class TargetTracker:
         pose = model.camera_placement(q_capture)
         in_camera = back_project_points(measurement.points, measurement.depths, self._focal)
         self.world = in_camera @ pose.rotation.T + pose.translation
+        self._raw_world = self.world
+        if raw is not measurement:
+            in_camera_raw = back_project_points(raw.points, raw.depths, self._focal)
+            self._raw_world = in_camera_raw @ pose.rotation.T + pose.translation
         self.estimator.update(pose.act(in_camera.mean(axis=0)), capture_time)
         return ""
+
+    def _measure_noise(
+        self,
+        measurement: ImageMeasurement,
+        prior: ImageMeasurement | None,
+        capture_time: float,
+        q_capture: np.ndarray,
+        velocity: np.ndarray,
+    ) -> None:
+        """Feed :attr:`noise` the innovation against the previous raw frame (module docstring)."""
+        if prior is None:
+            self.noise.restart()
+            return
+        if self.smoothing < 1:  # the prior is the smoothed estimate's: predict the raw frame
+            prior = self.predicted(capture_time, q_capture, velocity, self._raw_world)
+        self.noise.update(measurement.points - prior.points)
 
     def current(self, t: float, q: np.ndarray, velocity: np.ndarray) -> ImageMeasurement | None:
         """What the controller servoes on at ``t``: the measurement, its prediction, or None.
@@ -203,12 +233,18 @@ class TargetTracker:
         self.used = self.prediction if self.predicting else (self.measurement if fresh else None)
         return self.used
 
-    def predicted(self, t: float, q: np.ndarray, velocity: np.ndarray) -> ImageMeasurement:
-        """The newest measurement brought up to ``(t, q)`` along eq. (3) (module docstring)."""
+    def predicted(
+        self, t: float, q: np.ndarray, velocity: np.ndarray, world: np.ndarray | None = None
+    ) -> ImageMeasurement:
+        """The newest measurement brought up to ``(t, q)`` along eq. (3) (module docstring).
+
+        ``world``: other points placed by the newest frame [m], shape (k, 3) (its raw points).
+        """
         placement = self.model.camera_placement(q)
+        world = self.world if world is None else world
         image, depths = predict_points(
-            self.world, velocity, t - self.capture_time, placement.translation,
-            placement.rotation, self._focal,
+            world, velocity, t - self.capture_time, placement.translation, placement.rotation,
+            self._focal,
         )  # fmt: skip
         return ImageMeasurement(image, depths)
 
@@ -220,5 +256,6 @@ class TargetTracker:
         self.measurement, self.capture_time, self.used = None, -np.inf, None
         self.lost = self.predicting = False
         self.estimator.reset()
+        self.noise.restart()
         if self.gate is not None:
             self.gate.clear()
