@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from file_times import pytest_runtest_logreport, pytest_terminal_summary  # noqa: F401 (hooks)
 
 import pbvs_pin
 
