@@ -23,6 +23,8 @@ from pbvs_pin import interrupts as interrupts
 
 # isort: split
 import importlib
+import sys
+import types
 from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
@@ -107,6 +109,22 @@ def __getattr__(name: str) -> Any:
 
 def __dir__() -> list[str]:
     return sorted({*globals(), *_EXPORTS})
+
+
+class _Package(types.ModuleType):
+    """The package, whose public names stay what they name when a submodule shares one.
+
+    ``pbvs_pin.manipulability`` is the function: importing the submodule of that name (which
+    sets the package's attribute to the module) sets it to the module's function instead.
+    """
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if isinstance(value, types.ModuleType) and _EXPORTS.get(name) == value.__name__:
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 __all__ = [

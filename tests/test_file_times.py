@@ -38,3 +38,12 @@ def test_each_file_is_listed_once_slowest_first(tmp_path, options):
     table = _table(tmp_path, *options)
     assert list(table) == ["test_slow_one.py", "test_quick_one.py"], table
     assert table["test_slow_one.py"] >= 0.3
+
+
+def test_every_slow_file_exists(request):
+    """The quick subset's list names real files (a renamed file would silently turn quick)."""
+    from conftest import SLOW_FILES
+
+    assert SLOW_FILES
+    assert sorted(name for name in SLOW_FILES if not (TESTS / name).is_file()) == []
+    assert "slow" not in request.node.keywords  # this file is in the quick subset
