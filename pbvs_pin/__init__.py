@@ -11,70 +11,121 @@ its :class:`~pbvs_pin.sim.log.RunLog`. :class:`Controller` is the controller tha
 :func:`simulate` steps, for a loop of your own: encoders, :class:`CameraFrame` s with their
 capture times and laser readings in, velocity references out; built from
 :class:`ControllerSettings` or a scenario.
+
+The names below are imported when first used (PEP 562's module ``__getattr__``): ``import
+pbvs_pin`` loads neither Numba nor Pinocchio nor MuJoCo, so that the command line answers
+``--help`` and refuses a bad input at once; the first use of, say, :func:`simulate` loads what
+it needs.
 """
 
 # interrupts first: a Ctrl-C while the command loads its modules is one line (its docstring)
 from pbvs_pin import interrupts as interrupts
 
 # isort: split
+import importlib
+import sys
+import types
 from importlib.metadata import PackageNotFoundError, version
+from typing import Any
 
-# compile_cache (first, as sorted) keys Numba's cache on the kernels' sources
+# compile_cache (first, as sorted) keys Numba's cache on the kernels' sources, before any kernel
 from pbvs_pin import compile_cache as compile_cache
-from pbvs_pin.base import BaseAdapter, DifferentialDrive, FixedBase, Omnidirectional
-from pbvs_pin.camera import CameraIntrinsics, point_interaction_matrix
-from pbvs_pin.camera_frame import CameraFrame
-from pbvs_pin.catalogue import ROBOT_NAMES, load_robot
-from pbvs_pin.control.settings import ControllerSettings
-from pbvs_pin.controller import Controller, ServoCommand
-from pbvs_pin.dynamics import DynamicTerms, rigid_body_terms
-from pbvs_pin.exceptions import (
-    BaseJointsError,
-    ChainError,
-    ControlInputError,
-    DriveAxleNotFound,
-    FrameNotFound,
-    GainError,
-    HomeNotFound,
-    NoMovableJoint,
-    NonFiniteValue,
-    PbvsError,
-    PointBehindCamera,
-    RobotNotFound,
-    ScenarioError,
-    ShapeError,
-    UrdfError,
-    ViewerUnavailable,
-)
-from pbvs_pin.features import FeatureSet, ImageMeasurement, ImagePointFeatures, TwoSphereFeatures
-from pbvs_pin.home import HomeCriteria, compute_home
-from pbvs_pin.manipulability import (
-    arm_manipulability,
-    manipulability,
-    max_manipulability_posture,
-    whole_body_manipulability,
-)
-from pbvs_pin.platform_frame import PlatformFrame
-from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.servo import ServoModel
-from pbvs_pin.sim.detection import ColourDetector, Detector, register_detector
-from pbvs_pin.sim.log import RunLog
-from pbvs_pin.sim.loop import simulate
-from pbvs_pin.sim.scenario import Scenario, load_scenario
-from pbvs_pin.sim.sections import (
-    CameraSection,
-    CompensationSection,
-    ControllerSection,
-    EstimatorSection,
-    SecondarySection,
-    TargetSection,
-)
 
 try:
     __version__ = version("pbvs_pin")
     """The installed distribution's version (``pyproject.toml``)."""
 except PackageNotFoundError:  # a source tree that was never installed
     __version__ = "0+unknown"
+
+_EXPORTS = {
+    "BaseAdapter": "pbvs_pin.base",
+    "DifferentialDrive": "pbvs_pin.base",
+    "FixedBase": "pbvs_pin.base",
+    "Omnidirectional": "pbvs_pin.base",
+    "CameraIntrinsics": "pbvs_pin.camera",
+    "point_interaction_matrix": "pbvs_pin.camera",
+    "CameraFrame": "pbvs_pin.camera_frame",
+    "ROBOT_NAMES": "pbvs_pin.catalogue",
+    "load_robot": "pbvs_pin.catalogue",
+    "ControllerSettings": "pbvs_pin.control.settings",
+    "Controller": "pbvs_pin.controller",
+    "ServoCommand": "pbvs_pin.controller",
+    "DynamicTerms": "pbvs_pin.dynamics",
+    "rigid_body_terms": "pbvs_pin.dynamics",
+    "BaseJointsError": "pbvs_pin.exceptions",
+    "ChainError": "pbvs_pin.exceptions",
+    "ControlInputError": "pbvs_pin.exceptions",
+    "DriveAxleNotFound": "pbvs_pin.exceptions",
+    "FrameNotFound": "pbvs_pin.exceptions",
+    "GainError": "pbvs_pin.exceptions",
+    "HomeNotFound": "pbvs_pin.exceptions",
+    "NoMovableJoint": "pbvs_pin.exceptions",
+    "NonFiniteValue": "pbvs_pin.exceptions",
+    "PbvsError": "pbvs_pin.exceptions",
+    "PointBehindCamera": "pbvs_pin.exceptions",
+    "RobotNotFound": "pbvs_pin.exceptions",
+    "ScenarioError": "pbvs_pin.exceptions",
+    "ShapeError": "pbvs_pin.exceptions",
+    "UrdfError": "pbvs_pin.exceptions",
+    "ViewerUnavailable": "pbvs_pin.exceptions",
+    "FeatureSet": "pbvs_pin.features",
+    "ImageMeasurement": "pbvs_pin.features",
+    "ImagePointFeatures": "pbvs_pin.features",
+    "TwoSphereFeatures": "pbvs_pin.features",
+    "HomeCriteria": "pbvs_pin.home",
+    "compute_home": "pbvs_pin.home",
+    "arm_manipulability": "pbvs_pin.manipulability",
+    "manipulability": "pbvs_pin.manipulability",
+    "max_manipulability_posture": "pbvs_pin.manipulability",
+    "whole_body_manipulability": "pbvs_pin.manipulability",
+    "PlatformFrame": "pbvs_pin.platform_frame",
+    "MobileManipulator": "pbvs_pin.robot",
+    "ServoModel": "pbvs_pin.servo",
+    "ColourDetector": "pbvs_pin.sim.detection",
+    "Detector": "pbvs_pin.sim.detection",
+    "register_detector": "pbvs_pin.sim.detection",
+    "RunLog": "pbvs_pin.sim.log",
+    "simulate": "pbvs_pin.sim.loop",
+    "Scenario": "pbvs_pin.sim.scenario",
+    "load_scenario": "pbvs_pin.sim.scenario",
+    "CameraSection": "pbvs_pin.sim.sections",
+    "CompensationSection": "pbvs_pin.sim.sections",
+    "ControllerSection": "pbvs_pin.sim.sections",
+    "EstimatorSection": "pbvs_pin.sim.sections",
+    "SecondarySection": "pbvs_pin.sim.sections",
+    "TargetSection": "pbvs_pin.sim.sections",
+}
+"""Each public name and the module that defines it (imported on first use)."""
+
+
+def __getattr__(name: str) -> Any:
+    """The public ``name``, imported from its module on first use (PEP 562)."""
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'pbvs_pin' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})
+
+
+class _Package(types.ModuleType):
+    """The package, whose public names stay what they name when a submodule shares one.
+
+    ``pbvs_pin.manipulability`` is the function: importing the submodule of that name (which
+    sets the package's attribute to the module) sets it to the module's function instead.
+    """
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if isinstance(value, types.ModuleType) and _EXPORTS.get(name) == value.__name__:
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
 
 __all__ = [
     "ROBOT_NAMES",

@@ -14,16 +14,17 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 from xml.etree import ElementTree
 
 import numpy as np
 
-from pbvs_pin.assembly import example_robot_data_alias
-from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.exceptions import RobotNotFound, WrongType
-from pbvs_pin.home import compute_home
-from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.shipped import shipped_urdf
+
+if TYPE_CHECKING:  # the names and recipes load without Pinocchio (the command line's --help)
+    from pbvs_pin.camera import CameraIntrinsics
+    from pbvs_pin.robot import MobileManipulator
 
 OPTICAL_FROM_BODY = (0.0, 0.0, 0.0, -np.pi / 2, 0.0, -np.pi / 2)
 """Pose of an optical frame (z forward) in a body frame whose x axis points forward."""
@@ -120,6 +121,8 @@ def example_robot_data_arms() -> list[str]:
     """
     from example_robot_data.robots_loader import ROBOTS, getModelPath
 
+    from pbvs_pin.assembly import example_robot_data_alias
+
     arms = []
     for name, loader in ROBOTS.items():
         if loader.free_flyer or not loader.urdf_filename or example_robot_data_alias(name):
@@ -184,6 +187,12 @@ def build_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileMani
     Raises:
         RobotNotFound: If ``name`` is neither.
     """
+    is_file = Path(name).suffix.lower() == ".urdf" or Path(name).exists()
+    if name not in ROBOT_NAMES and not is_file:  # refused before Pinocchio loads
+        raise RobotNotFound(name, ROBOT_NAMES)
+    from pbvs_pin.home import compute_home
+    from pbvs_pin.robot import MobileManipulator
+
     if name == REFERENCE_ROBOT:
         return MobileManipulator.from_urdf(str(shipped_urdf(name)), camera=camera)
     if name in RECIPES:
@@ -198,11 +207,9 @@ def build_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileMani
         )
         robot.home_arm = np.array(recipe.home)
         return robot
-    if Path(name).suffix.lower() == ".urdf" or Path(name).exists():
-        robot = MobileManipulator.from_urdf(name, camera=camera)
-        robot.home_arm = compute_home(robot)
-        return robot
-    raise RobotNotFound(name, ROBOT_NAMES)
+    robot = MobileManipulator.from_urdf(name, camera=camera)
+    robot.home_arm = compute_home(robot)
+    return robot
 
 
 def load_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileManipulator:

@@ -41,6 +41,7 @@ from pbvs_pin.interrupts import (
 from pbvs_pin.outputs import Output, check_output, replace_run_folder
 from pbvs_pin.report import ENGINE_ROBOTS
 from pbvs_pin.ros.commands import add_arguments as ros_arguments
+from pbvs_pin.shipped import scenario_file
 from pbvs_pin.validation import positive_number
 from pbvs_pin.zoo import add_arguments as zoo_arguments
 from pbvs_pin.zoo import command as zoo_command
@@ -63,19 +64,20 @@ def load_robot_argument(argument: str) -> MobileManipulator:
             its robot cannot be built (naming the dotted field).
     """
     from pbvs_pin.catalogue import build_robot
-    from pbvs_pin.experiments import robot_file
 
     if Path(argument).suffix.lower() != ".toml":
         return build_robot(argument)
+    from pbvs_pin.experiments import robot_file
+
     scenario = robot_file(argument)
     return scenario.robot.build(scenario.camera.intrinsics())
 
 
 def _info(args: argparse.Namespace) -> None:
     """Print a robot's dof, joints, limits, camera and manipulability."""
+    robot = load_robot_argument(args.robot)
     from pbvs_pin.manipulability import arm_manipulability, whole_body_manipulability
 
-    robot = load_robot_argument(args.robot)
     q = robot.home()
     lower, upper = robot.arm_position_limits()
     label, source = _normalised(args.robot), _normalised(robot.source)
@@ -119,7 +121,7 @@ def _list(args: argparse.Namespace) -> None:
         print("\n".join(f"  {line}" for line in key_lines()))
         return
     from pbvs_pin.catalogue import example_robot_data_arms
-    from pbvs_pin.sim.scenario import shipped_scenarios
+    from pbvs_pin.shipped import shipped_scenarios
     from pbvs_pin.sweep.spec import sweep_dir
 
     sections = (
@@ -143,11 +145,13 @@ def _run_scenario(args: argparse.Namespace) -> Scenario:
     Raises:
         ScenarioError: If the scenario, the robot or a changed value is invalid.
     """
-    from pbvs_pin.experiments import with_robot
+    scenario_file(args.scenario)  # an unknown name is refused before the simulation loads
     from pbvs_pin.sim.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
     if args.robot is not None:
+        from pbvs_pin.experiments import with_robot
+
         scenario = with_robot(scenario, args.robot)
     changes = dict(_setting(text) for text in args.set)
     if args.engine is not None:
@@ -177,14 +181,14 @@ def _setting(text: str) -> tuple[str, object]:
 
 def _run(args: argparse.Namespace) -> None:
     """Run one scenario, optionally with a live Meshcat view (the run goes on without one)."""
-    from pbvs_pin.experiments import run_scenario
-
     if args.speed is not None and not args.meshcat:
         raise UsageError("--speed", "only applies to the live view; add --meshcat or drop it")
     speed = 1.0 if args.speed is None else args.speed
     out = Path(args.out)
     html = Path(args.html) if args.html else None
     scenario = _run_scenario(args)
+    from pbvs_pin.experiments import run_scenario
+
     if args.force:
         replace_run_folder(out)
     live = None
@@ -246,12 +250,12 @@ def _compile(args: argparse.Namespace) -> None:
 
 def _reproduce(args: argparse.Namespace) -> None:
     """Run the paper's four experiments and write the report."""
-    from pbvs_pin.experiments import reproduce, with_robot
-    from pbvs_pin.sim.scenario import load_scenario
-
     for robot in args.engines:
         if robot not in ROBOT_NAMES:
             raise RobotNotFound(robot, ROBOT_NAMES)
+    from pbvs_pin.experiments import reproduce, with_robot
+    from pbvs_pin.sim.scenario import load_scenario
+
     for robot in args.robots:  # a name, a URDF or a robot file: checked before any run
         with_robot(load_scenario("experiment1"), robot)
     if args.force:
@@ -269,9 +273,10 @@ def _reproduce(args: argparse.Namespace) -> None:
 
 def _view(args: argparse.Namespace) -> None:
     """Show a robot at home with its camera frame and frustum."""
+    robot = load_robot_argument(args.robot)
     from pbvs_pin.viz.live import view_robot
 
-    view_robot(load_robot_argument(args.robot), Path(args.html) if args.html else None)
+    view_robot(robot, Path(args.html) if args.html else None)
 
 
 def _zoo(args: argparse.Namespace) -> None:

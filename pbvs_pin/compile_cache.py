@@ -8,13 +8,15 @@ the disk cache missed), and says nothing when the cache is warm. ``pbvs-pin comp
 same compile as an explicit step, right after installing (:mod:`pbvs_pin.cli`).
 
 **The cache key.** Importing this module (the package's ``__init__`` does, before any other
-module) keys the cache. Numba checks a cached kernel against its own source file only, but the
-fused control step compiles into itself kernels of other modules (``inline="always"``): after
-an edit of one of those, a warm cache would run the old code. :func:`use_keyed_cache`
-therefore places the cache in a
-folder named by :func:`cache_key`, a hash of every module that declares a kernel, Numba's
-version and Python's: any edit of any kernel's source makes a new, cold cache. The folder is
-under ``NUMBA_CACHE_DIR`` when it is set, else under the user's cache folder
+module) keys the cache, without importing Numba: when Numba is not loaded yet, an import hook
+sets its cache folder as soon as its configuration module loads, before any kernel is declared
+(so that ``pbvs-pin --help`` never loads Numba). Numba checks a cached kernel against its own
+source file only, but the fused control step compiles into itself kernels of other modules
+(``inline="always"``): after an edit of one of those, a warm cache would run the old code.
+:func:`use_keyed_cache` therefore places the cache in a folder named by :func:`cache_key`, a
+hash of every module that declares a kernel, Numba's version and Python's: any edit of any
+kernel's source makes a new, cold cache. The folder is under ``NUMBA_CACHE_DIR`` when it is
+set, else under the user's cache folder
 (``$XDG_CACHE_HOME`` or ``~/.cache``, then ``pbvs_pin/numba``).
 """
 
@@ -22,14 +24,16 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import importlib.abc
+import importlib.machinery
 import os
 import platform
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
+from importlib.metadata import version
 from pathlib import Path
+from types import ModuleType
 from typing import TextIO
-
-from numba.core import event
 
 PACKAGE = Path(__file__).resolve().parent
 """The installed package's folder."""
@@ -47,9 +51,7 @@ def cache_key(package: Path = PACKAGE) -> str:
 
     It changes whenever any compiled code can.
     """
-    import numba
-
-    digest = hashlib.sha256(f"{numba.__version__} {platform.python_version()}".encode())
+    digest = hashlib.sha256(f"{version('numba')} {platform.python_version()}".encode())
     for path in kernel_modules(package):
         digest.update(str(path.relative_to(package)).encode())
         digest.update(path.read_bytes())
@@ -65,12 +67,45 @@ def cache_root() -> Path:
     return Path(base) / "pbvs_pin" / "numba"
 
 
-def use_keyed_cache() -> Path:
-    """Point Numba's cache at ``cache_root() / cache_key()``; return that folder."""
-    from numba.core import config
+NUMBA_CONFIG = "numba.core.config"
+"""Numba's configuration module, whose ``CACHE_DIR`` every cached kernel's locator reads."""
 
+
+class _KeyOnLoad(importlib.abc.MetaPathFinder):
+    """Sets ``CACHE_DIR`` to ``folder`` right after Numba's configuration module loads."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+
+    def find_spec(
+        self, name: str, path: Sequence[str] | None, target: ModuleType | None = None
+    ) -> importlib.machinery.ModuleSpec | None:
+        if name != NUMBA_CONFIG:
+            return None
+        spec = importlib.machinery.PathFinder.find_spec(name, path)
+        if spec is None or spec.loader is None:
+            return spec
+        load, folder = spec.loader.exec_module, str(self.folder)
+
+        def exec_module(module: ModuleType) -> None:
+            load(module)
+            module.CACHE_DIR = folder
+
+        spec.loader.exec_module = exec_module  # type: ignore[method-assign]
+        return spec
+
+
+def use_keyed_cache() -> Path:
+    """Point Numba's cache at ``cache_root() / cache_key()``; return that folder.
+
+    If Numba is loaded, its configuration is set now; else when it loads (an import hook).
+    """
     folder = cache_root() / cache_key()
-    config.CACHE_DIR = str(folder)
+    config = sys.modules.get(NUMBA_CONFIG)
+    if config is not None:
+        config.CACHE_DIR = str(folder)
+    elif not any(isinstance(finder, _KeyOnLoad) for finder in sys.meta_path):
+        sys.meta_path.insert(0, _KeyOnLoad(folder))
     return folder
 
 
@@ -124,11 +159,12 @@ def kernels_cached() -> bool:
         return True
 
 
-class CompileAnnouncer(event.Listener):
+class CompileAnnouncer:
     """Prints :data:`COMPILE_NOTICE` at the first compile of one of the package's kernels.
 
-    A listener of Numba's ``numba:compile`` event, which Numba raises only when it compiles
-    (after its disk cache missed), never when it loads a cached kernel.
+    Hears Numba's ``numba:compile`` event (through :func:`announce_compiles`), which Numba
+    raises only when it compiles (after its disk cache missed), never when it loads a cached
+    kernel.
 
     Args:
         stream: Where the notice goes (stderr when None).
@@ -167,6 +203,16 @@ def announce_compiles(
     Yields:
         The listener: its ``compiled`` counts the package's kernels compiled in the block.
     """
+    from numba.core import event
+
     announcer = CompileAnnouncer(stream, enabled)
-    with event.install_listener("numba:compile", announcer):
+
+    class Relay(event.Listener):  # Numba takes only its own Listener type
+        def on_start(self, compile_event: object) -> None:
+            announcer.on_start(compile_event)
+
+        def on_end(self, compile_event: object) -> None:
+            announcer.on_end(compile_event)
+
+    with event.install_listener("numba:compile", Relay()):
         yield announcer

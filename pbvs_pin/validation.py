@@ -13,13 +13,15 @@ from __future__ import annotations
 import os
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
-import pinocchio as pin
 
 from pbvs_pin.exceptions import GainError, NonFiniteValue, ScenarioError, ShapeError, WrongType
+
+if TYPE_CHECKING:  # Pinocchio loads with the first pose (the command line's --help never needs it)
+    import pinocchio as pin
 
 
 def as_array(name: str, value: npt.ArrayLike, shape: tuple[int, ...]) -> np.ndarray:
@@ -127,6 +129,8 @@ def as_pose_object(name: str, pose: object) -> pin.SE3:
     Raises:
         WrongType: If it is not.
     """
+    import pinocchio as pin
+
     if not isinstance(pose, pin.SE3):
         raise WrongType(name, "a pinocchio.SE3", pose)
     return pose
@@ -239,6 +243,8 @@ def as_se3(name: str, pose: pin.SE3 | npt.ArrayLike) -> pin.SE3:
         GainError: If an SE3's rotation is not orthonormal with determinant +1 (within
             :data:`ROTATION_TOLERANCE`); it is refused, never silently altered.
     """
+    import pinocchio as pin
+
     if isinstance(pose, pin.SE3):
         rotation = as_array(f"{name}.rotation", pose.rotation, (3, 3))
         as_array(f"{name}.translation", pose.translation, (3,))

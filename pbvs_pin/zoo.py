@@ -31,18 +31,19 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from importlib.metadata import packages_distributions
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pbvs_pin.assembly import PACKAGE_PREFIX
 from pbvs_pin.claims import failed, judge, verdict_text
 from pbvs_pin.exceptions import PbvsError, PbvsWarning
 from pbvs_pin.outputs import Output
 from pbvs_pin.report import rst_row
-from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.shipped import urdf_dir
 from pbvs_pin.validation import read_toml
+
+if TYPE_CHECKING:  # the command's arguments load without Pinocchio (pbvs-pin --help)
+    from pbvs_pin.robot import MobileManipulator
 
 EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
 """The paper's experiments, as shipped scenarios."""
@@ -83,6 +84,7 @@ class ZooRobot:
 
 def _package_of(source: str) -> str:
     """The distribution a ``[robot]`` URDF source (or shipped robot name) comes from."""
+    from pbvs_pin.assembly import PACKAGE_PREFIX
     from pbvs_pin.catalogue import RECIPES, REFERENCE_ROBOT
 
     if source.startswith(PACKAGE_PREFIX):

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from file_times import pytest_runtest_logreport, pytest_terminal_summary  # noqa: F401 (hooks)
 
 import pbvs_pin
 
@@ -281,6 +282,45 @@ class CytonClosedForm:
         pitch_axis = [-np.sin(th + q1), np.cos(th + q1), 0.0]
         angular = np.column_stack([[0, 0, 0], [0, 0, 1], [0, 0, 1], pitch_axis, pitch_axis])
         return rot_z(th) @ linear_in_base, angular.astype(float)
+
+
+# ---------------------------------------------------------------- the quick subset
+SLOW_FILES = frozenset(
+    {
+        "test_any_robot.py",
+        "test_arm_chain.py",
+        "test_assembly.py",
+        "test_bad_sweeps.py",
+        "test_baseline.py",
+        "test_claims.py",
+        "test_compile_cache.py",
+        "test_controller_outside.py",
+        "test_ctrl_c_stages.py",
+        "test_docs.py",
+        "test_fuzz.py",
+        "test_holonomic.py",
+        "test_mujoco_acceptance.py",
+        "test_mujoco_stability.py",
+        "test_plant_engines.py",
+        "test_readme.py",
+        "test_readme_numbers.py",
+        "test_readme_numbers_arms.py",
+        "test_readme_numbers_mujoco.py",
+        "test_ros.py",
+        "test_zoo.py",
+    }
+)
+"""Test files marked ``slow``: the full suite runs them, the quick subset
+(``python -m pytest -m "not slow"``, the README's) leaves them out. They are the 21 files
+that took the longest in a full run (90 % of its test time; the per-file times the suite prints
+at its end); the other files take about a tenth of the suite's time."""
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark every test of :data:`SLOW_FILES` ``slow``."""
+    for item in items:
+        if item.path.name in SLOW_FILES:
+            item.add_marker(pytest.mark.slow)
 
 
 # ---------------------------------------------------------------- fixtures

@@ -407,6 +407,25 @@ def test_every_kind_of_array_is_converted_once_and_compiles_nothing(settled):
     assert _signatures() == before
 
 
+@pytest.mark.parametrize("kind", ["float32", "int", "read-only", "non-contiguous", "list"])
+def test_a_configuration_of_any_dtype_or_layout_compiles_nothing(settled, kind):
+    """``q`` itself as float32, int, read-only, strided or a list (the test above keeps its
+    float64 values to compare commands): converted at the door, no kernel specialises."""
+    loop = copy.deepcopy(settled)
+    before = _signatures()
+    inputs = loop.inputs()
+    inputs["q"] = {
+        "float32": lambda x: x.astype(np.float32),
+        "int": lambda x: np.round(x).astype(np.int64),  # (cos, sin) rounds to a unit pair
+        "read-only": _read_only,
+        "non-contiguous": lambda x: np.repeat(x, 2)[::2],
+        "list": lambda x: x.tolist(),
+    }[kind](inputs["q"])
+    command = loop.controller.step(**inputs)
+    assert np.isfinite(command.v_ref).all()
+    assert _signatures() == before, f"a {kind} q compiled a new specialisation"
+
+
 @pytest.mark.parametrize("t", ["1.0", b"1.0", True, None, [1.0], object()])
 def test_a_time_that_is_not_a_number_is_refused(settled, t):
     loop = copy.deepcopy(settled)

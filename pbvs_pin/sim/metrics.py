@@ -20,12 +20,12 @@ them (:func:`summarize`):
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy import signal
 
-from pbvs_pin.sim.log import AT_LIMIT, RunLog
+if TYPE_CHECKING:  # the rules' constants load without the log's modules (claims, the CLI)
+    from pbvs_pin.sim.log import RunLog
 
 FINAL_WINDOW = 5.0
 """Length [s] of the window at the end of a run over which the final error is taken."""
@@ -54,6 +54,8 @@ def summarize(log: RunLog) -> dict[str, Any]:
         (:func:`pbvs_pin.sim.log.sensing_meta`; None for a log without them), and the flags
         of the module docstring.
     """
+    from pbvs_pin.sim.log import AT_LIMIT
+
     t = log["t"]
     error = log["xi_true"] - log["xi_d"]
     final = t >= t[-1] - FINAL_WINDOW
@@ -182,6 +184,8 @@ def oscillation_rms(t: np.ndarray, error: np.ndarray) -> tuple[float, float | No
         if not finite.any():
             return 0.0, None
         filled[:, j] = np.interp(times, times[finite], values[finite, j])
+    from scipy import signal
+
     sos = signal.butter(4, OSCILLATION_CUTOFF_HZ, "highpass", fs=rate, output="sos")
     high = signal.sosfiltfilt(sos, filled, axis=0)
     width = max(1, round(FINAL_WINDOW * rate))

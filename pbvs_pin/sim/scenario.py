@@ -21,6 +21,8 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from pbvs_pin.exceptions import GainError, ScenarioError
+from pbvs_pin.shipped import scenario_dir as scenario_dir  # where it was, for its users
+from pbvs_pin.shipped import scenario_file, shipped_scenarios
 from pbvs_pin.sim.consistency import check_consistency
 from pbvs_pin.sim.keys import Section, Sign, is_number, key, keys_of
 from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle
@@ -41,7 +43,7 @@ from pbvs_pin.sim.sections import (
     SimulationSection,
     TargetSection,
 )
-from pbvs_pin.validation import as_path, read_toml
+from pbvs_pin.validation import read_toml
 
 OBSTACLE_KINDS: dict[str, type[CircleObstacle | BoxObstacle]] = {
     "circle": CircleObstacle,
@@ -160,33 +162,13 @@ def obstacle_table(obstacle: CircleObstacle | BoxObstacle) -> dict[str, Any]:
     return {"kind": kind, **{spec.name: getattr(obstacle, spec.name) for spec in fields(obstacle)}}
 
 
-def scenario_dir() -> Path:
-    """Folder of the shipped scenarios."""
-    return Path(__file__).resolve().parents[1] / "scenarios"
-
-
-def shipped_scenarios() -> list[str]:
-    """Names of the shipped scenarios."""
-    return sorted(path.stem for path in scenario_dir().glob("*.toml"))
-
-
 def load_scenario(name_or_path: str | Path) -> Scenario:
     """Read and validate a scenario file, or a shipped scenario by name.
 
     Raises:
         ScenarioError: Unknown scenario, malformed TOML, or an invalid field.
     """
-    path = as_path("name_or_path", name_or_path)
-    if not path.is_file():
-        shipped = scenario_dir() / f"{name_or_path}.toml"
-        if not shipped.is_file():
-            raise ScenarioError(
-                str(name_or_path),
-                "",
-                "no such scenario file, and not a shipped scenario; shipped: "
-                + ", ".join(shipped_scenarios()),
-            )
-        path = shipped
+    path = scenario_file(name_or_path)
     raw = read_toml(path, "a scenario")
     if not raw:
         raise ScenarioError(
