@@ -81,6 +81,10 @@ _MAX_ITERATIONS = 60
 _KEEP = 1e-5
 """How much [rad or m] step 2 may lose on step 1's orientation error and band violation."""
 
+_BALANCE_WEIGHT = 1.0
+"""Weight [rad/m] of the centre of mass's shortfall in step 1 (:class:`_Balance`): as much as
+the orientation, since a home that tips the platform is no home."""
+
 
 @dataclass(frozen=True)
 class HomeCriteria:
@@ -99,6 +103,9 @@ class HomeCriteria:
             step 2's cost, against ``-log`` of the manipulability.
         max_forward_error: Largest angle [rad] between the optical axis and the platform's x
             axis before :func:`compute_home` gives up (10 deg).
+        com_margin: Least distance [m] the centre of mass keeps inside the platform's support
+            polygon when the home found without it would tip the platform (a home that does
+            not tip is kept as found); None: tipping is not considered.
     """
 
     min_height: float = 0.5
@@ -109,10 +116,18 @@ class HomeCriteria:
     limit_margin: float = 0.1
     posture_weight: float = 0.2
     max_forward_error: float = np.radians(10.0)
+    com_margin: float | None = 0.05
 
     def __post_init__(self) -> None:
-        """Reject an empty band, a non-positive tolerance, a margin outside [0, 0.5)."""
-        convert_fields(self, tuple(field.name for field in fields(self)))
+        """Reject an empty band, a non-positive tolerance, a margin outside [0, 0.5) or < 0."""
+        given = (field.name for field in fields(self))
+        convert_fields(self, tuple(name for name in given if getattr(self, name) is not None))
+        if self.com_margin is not None:
+            if not (np.isfinite(self.com_margin) and self.com_margin >= 0.0):
+                raise GainError(
+                    f"HomeCriteria.com_margin: expected >= 0 m or None, got {self.com_margin}",
+                    "com_margin",
+                )
         for low, high in (("min_height", "max_height"), ("min_ahead", "max_ahead")):
             if not getattr(self, high) > getattr(self, low):
                 raise GainError(
@@ -200,13 +215,61 @@ def assess_home(robot: MobileManipulator, arm: npt.ArrayLike) -> HomeAssessment:
     )
 
 
+class _Balance:
+    r"""The centre of mass kept ``margin`` inside a convex support polygon, platform at the origin.
+
+    Rows :math:`s_i(\theta) = n_i^\top (c_{xy}(\theta) - v_i) - \text{margin} \ge 0`, with
+    ``v_i`` the polygon's vertices (counter-clockwise), ``n_i`` its edges' inward unit normals
+    and ``c`` Pinocchio's centre of mass of the whole robot (``pin.centerOfMass``), whose
+    Jacobian ``pin.jacobianCenterOfMass`` gives :math:`\partial s / \partial \theta`.
+    """
+
+    def __init__(self, robot: MobileManipulator, vertices: np.ndarray, margin: float) -> None:
+        self.robot, self.margin = robot, margin
+        edges = np.roll(vertices, -1, axis=0) - vertices
+        normals = np.stack([-edges[:, 1], edges[:, 0]], axis=1)
+        self.normals = normals / np.linalg.norm(normals, axis=1)[:, None]
+        self.offsets = np.sum(self.normals * vertices, axis=1) + margin
+        self.arm_columns = robot.selection[:, robot.n_base :]
+
+    def slack(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rows ``s`` [m], shape (k,), and their Jacobian in the arm joints, shape (k, n_arm)."""
+        robot = self.robot
+        jacobian = pin.jacobianCenterOfMass(robot.model, robot.data, q)
+        centre = robot.data.com[0][:2]
+        return self.normals @ centre - self.offsets, self.normals @ (
+            jacobian[:2] @ self.arm_columns
+        )
+
+    def shortfall(self, q: np.ndarray) -> float:
+        """How far [m] the centre of mass lacks the margin (0 when it keeps it)."""
+        return max(0.0, -float(np.min(self.slack(q)[0])))
+
+
 class _Kinematics:
-    """Camera pose and arm Jacobian at an arm posture, platform at the origin (cached)."""
+    """Camera pose and arm Jacobian at an arm posture, platform at the origin (cached).
+
+    Attributes:
+        balance: The centre-of-mass rows both steps keep, or None.
+    """
 
     def __init__(self, robot: MobileManipulator) -> None:
         self.robot = robot
         self.base_q = robot.neutral()
         self._arm: np.ndarray | None = None
+        self.balance: _Balance | None = None
+
+    def shortfall(self, arm: np.ndarray) -> float:
+        """:meth:`_Balance.shortfall` at ``arm`` (0 without balance)."""
+        if self.balance is None:
+            return 0.0
+        return self.balance.shortfall(self.robot.with_arm_positions(self.base_q, arm))
+
+    def balance_rows(self, arm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_Balance.slack` at ``arm``; shapes (0,) and (0, n_arm) without balance."""
+        if self.balance is None:
+            return np.zeros(0), np.zeros((0, len(arm)))
+        return self.balance.slack(self.robot.with_arm_positions(self.base_q, arm))
 
     def at(self, arm: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Rotation (3, 3), position (3,), ``dp/dtheta`` (3, n_arm), ``J_w`` LOCAL (3, n_arm)."""
@@ -264,12 +327,21 @@ def _stage_one(
 
     def residual(arm: np.ndarray) -> np.ndarray:
         error, slack, _, _ = parts(arm)
-        return np.concatenate([pin.log3(error), _BAND_WEIGHT * np.maximum(0.0, -slack)])
+        balance = kinematics.balance_rows(arm)[0]
+        return np.concatenate(
+            [
+                pin.log3(error),
+                _BAND_WEIGHT * np.maximum(0.0, -slack),
+                _BALANCE_WEIGHT * np.maximum(0.0, -balance),
+            ]
+        )
 
     def jacobian(arm: np.ndarray) -> np.ndarray:
         error, slack, d_slack, jw = parts(arm)
         d_band = np.where((slack < 0.0)[:, None], -_BAND_WEIGHT * d_slack, 0.0)
-        return np.vstack([pin.Jlog3(error) @ jw, d_band])
+        balance, d_balance = kinematics.balance_rows(arm)
+        d_balance = np.where((balance < 0.0)[:, None], -_BALANCE_WEIGHT * d_balance, 0.0)
+        return np.vstack([pin.Jlog3(error) @ jw, d_band, d_balance])
 
     return least_squares(
         residual, start, jac=jacobian, bounds=bounds, method="dogbox", max_nfev=_MAX_EVALUATIONS
@@ -282,6 +354,7 @@ def _stage_two(
     start: np.ndarray,
     bounds: tuple[np.ndarray, np.ndarray],
     reached: HomeAssessment,
+    shortfall: float = 0.0,
 ) -> tuple[np.ndarray, float]:
     """Step 2 from a step-1 posture: best-conditioned posture keeping what step 1 reached.
 
@@ -292,6 +365,8 @@ def _stage_two(
         bounds: Lower and upper bounds of the arm joints. Shapes (n_arm,).
         reached: Assessment of the best step-1 posture: its orientation error and band
             violation (plus ``_KEEP``) bound those of the result.
+        shortfall: The best step-1 posture's shortfall [m] from the centre-of-mass margin
+            (:class:`_Balance`; plus ``_KEEP``, it bounds the result's).
 
     Returns:
         The posture, shape (n_arm,), and its cost; cost ``inf`` if it breaks the constraints.
@@ -323,15 +398,24 @@ def _stage_two(
         posture = criteria.posture_weight * np.sum(((arm - middle) / span) ** 2)
         return posture - np.log(arm_manipulability(robot, q) + 1e-12)
 
+    constraints = [
+        {"type": "ineq", "fun": orientation, "jac": orientation_jacobian},
+        {"type": "ineq", "fun": band, "jac": band_jacobian},
+    ]
+    if kinematics.balance is not None:
+        constraints.append(
+            {
+                "type": "ineq",
+                "fun": lambda arm: kinematics.balance_rows(arm)[0] + shortfall + _KEEP,
+                "jac": lambda arm: kinematics.balance_rows(arm)[1],
+            }
+        )
     result = minimize(
         cost,
         start,
         method="SLSQP",
         bounds=list(zip(*bounds, strict=True)),
-        constraints=[
-            {"type": "ineq", "fun": orientation, "jac": orientation_jacobian},
-            {"type": "ineq", "fun": band, "jac": band_jacobian},
-        ],
+        constraints=constraints,
         options={"maxiter": _MAX_ITERATIONS, "ftol": 1e-10},
     )
     arm = _stage_one(kinematics, criteria, np.clip(result.x, *bounds), bounds)
@@ -339,6 +423,7 @@ def _stage_two(
     kept = (
         found.orientation_error <= reached.orientation_error + _KEEP
         and found.band_violation(criteria) <= reached.band_violation(criteria) + _KEEP
+        and kinematics.shortfall(arm) <= shortfall + _KEEP
     )
     return arm, (cost(arm) if kept else np.inf)
 
@@ -349,6 +434,7 @@ def compute_home(
     starts: int = 8,
     refine: int = 3,
     seed: int = 0,
+    support: npt.ArrayLike | None = None,
 ) -> np.ndarray:
     """Arm posture in which the camera looks horizontally forward, image upright.
 
@@ -361,6 +447,10 @@ def compute_home(
             to the bounds) and the middle of the bounds.
         refine: Number of the best step-1 postures from which step 2 starts.
         seed: Seed of the random starting postures.
+        support: The platform's support polygon [m], vertices counter-clockwise in the
+            platform frame, shape (m, 2); None: the MuJoCo plant's floor contacts
+            (:func:`pbvs_pin.mujoco_support.support_polygon`). Fewer than three vertices, or
+            ``criteria.com_margin`` None: tipping is not considered.
 
     Returns:
         ``theta_h`` [rad or m], at least ``limit_margin`` of its range from each limit.
@@ -380,15 +470,44 @@ def compute_home(
     rng = np.random.default_rng(seed)
     guesses = [np.clip(np.zeros(robot.n_arm), *bounds), 0.5 * (bounds[0] + bounds[1])]
     guesses += [rng.uniform(*bounds) for _ in range(starts)]
+    arm = _solve(kinematics, criteria, guesses, bounds, refine)
+    if criteria.com_margin is None:
+        return arm
+    if support is None:
+        from pbvs_pin.mujoco_support import support_polygon
+
+        support = support_polygon(robot)
+    vertices = None if support is None else np.asarray(support, dtype=float).reshape(-1, 2)
+    if vertices is None or len(vertices) < 3:  # nothing to stand on, or no inside
+        return arm
+    kinematics.balance = _Balance(robot, vertices, 0.0)
+    if kinematics.shortfall(arm) == 0.0:  # it does not tip: kept as found
+        return arm
+    kinematics.balance = _Balance(robot, vertices, criteria.com_margin)
+    return _solve(kinematics, criteria, guesses, bounds, refine)
+
+
+def _solve(
+    kinematics: _Kinematics,
+    criteria: HomeCriteria,
+    guesses: list[np.ndarray],
+    bounds: tuple[np.ndarray, np.ndarray],
+    refine: int,
+) -> np.ndarray:
+    """Steps 1 and 2 from every guess: the best posture (see :func:`compute_home`)."""
+    robot = kinematics.robot
     candidates = [_stage_one(kinematics, criteria, g, bounds) for g in guesses]
     assessed = [assess_home(robot, arm) for arm in candidates]
+    shortfalls = [kinematics.shortfall(arm) for arm in candidates]
     ranks = sorted(
         range(len(candidates)),
         key=lambda i: (
-            assessed[i].orientation_error + _BAND_WEIGHT * assessed[i].band_violation(criteria)
+            assessed[i].orientation_error
+            + _BAND_WEIGHT * assessed[i].band_violation(criteria)
+            + _BALANCE_WEIGHT * shortfalls[i]
         ),
     )
-    best = assessed[ranks[0]]
+    best, least = assessed[ranks[0]], shortfalls[ranks[0]]
     if best.forward_error > criteria.max_forward_error:
         raise HomeNotFound(robot.source, np.degrees(best.forward_error), criteria)
     feasible = [
@@ -396,9 +515,11 @@ def compute_home(
         for i in ranks
         if assessed[i].orientation_error <= best.orientation_error + _KEEP
         and assessed[i].band_violation(criteria) <= best.band_violation(criteria) + _KEEP
+        and shortfalls[i] <= least + _KEEP
     ]
     refined = [
-        _stage_two(kinematics, criteria, candidates[i], bounds, best) for i in feasible[:refine]
+        _stage_two(kinematics, criteria, candidates[i], bounds, best, least)
+        for i in feasible[:refine]
     ]
     arm, value = min(refined, key=lambda pair: pair[1])
     return np.asarray(arm if np.isfinite(value) else candidates[ranks[0]], dtype=float)

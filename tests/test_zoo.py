@@ -159,27 +159,18 @@ def test_errors_name_files_without_this_machines_folders():
     )
 
 
-def test_an_explicit_drive_on_the_mujoco_plant_is_refused_with_the_way_out():
-    """Stretch's drive is given in its file; the MuJoCo plant needs wheels in the URDF."""
-    from pbvs_pin.exceptions import UrdfError
-    from pbvs_pin.mujoco_plant import build_spec
-
-    stretch = next(robot for robot in load_zoo(ROBOTS) if robot.name == "stretch_re1")
-    robot = RobotSection.from_toml(stretch.table, str(stretch.path)).build()
-    with pytest.raises(UrdfError) as refused:
-        build_spec(robot)
-    message = str(refused.value)
-    assert "'link_right_wheel' has no cylinder or sphere geometry" in message
-    assert "an explicit drive (wheel_radius, track, wheel_speed_limit)" in message
-    assert 'plant.engine = "pinocchio"' in message and "DifferentialDrive" not in message
+OLD_PANDA_HOME = (-1.9003, -1.4102, 0.8454, -1.9898, 2.2748, 2.0776, 1.4413)
+"""Panda's home on the Pioneer before the home solver knew the wheels' support: it tips."""
 
 
 def test_a_robot_that_tips_over_on_mujoco_is_listed_with_its_warning(tmp_path):
-    """Panda on the Pioneer tips over on the MuJoCo plant (tests/test_mujoco_stability.py):
-    its row keeps the plant's warning, and the page lists it under the runs that warned."""
+    """Panda on the Pioneer with its old home tips over on the MuJoCo plant
+    (tests/test_mujoco_stability.py): its row keeps the plant's warning, and the page lists it
+    under the runs that warned."""
     folder = tmp_path / "robots"
     folder.mkdir()
-    shutil.copy(ROBOTS / "pioneer_panda.toml", folder)
+    text = (ROBOTS / "pioneer_panda.toml").read_text()
+    (folder / "pioneer_panda.toml").write_text(text + f"home = {list(OLD_PANDA_HOME)}\n")
     rows = run_zoo(folder, tmp_path / "out", ("experiment1",), ("mujoco",), duration=0.2)
     assert "tips over on the MuJoCo plant" in rows[0]["warning"]
     assert errors(rows, "warning").startswith("- ``pioneer_panda`` on mujoco (experiment1): ")
