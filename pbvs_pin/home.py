@@ -41,6 +41,16 @@ gets the best feasible posture of step 1; :func:`assess_home` reports its residu
 the optical axis cannot be brought within ``max_forward_error`` of the platform's x axis,
 :class:`~pbvs_pin.exceptions.HomeNotFound` is raised.
 
+A platform that stands on wheels must not tip over at home (the MuJoCo plant's robot can;
+the Pinocchio plant's planar base cannot). If the posture found puts the whole robot's centre
+of mass (Pinocchio's, ``pin.centerOfMass``) outside the platform's support polygon (the convex
+hull of its floor contacts on the MuJoCo plant,
+:func:`pbvs_pin.mujoco_support.support_polygon`), steps 1 and 2 run again with the rows
+:math:`s_i = n_i^\top (c_{xy} - v_i) - \text{com\_margin} \ge 0` (``n_i`` the inward
+normals of the polygon's edges through its vertices ``v_i``): a residual
+:math:`[-s_i]_+` (weight 1 rad/m) in step 1, an inequality in step 2. A posture that does not
+tip is returned as found.
+
 The result is deterministic and depends on the model only: the starts are the zero posture
 (clipped to the bounds), the middle of the bounds, and ``starts`` postures drawn with
 ``numpy.random.default_rng(seed)``.
@@ -447,10 +457,12 @@ def compute_home(
             to the bounds) and the middle of the bounds.
         refine: Number of the best step-1 postures from which step 2 starts.
         seed: Seed of the random starting postures.
-        support: The platform's support polygon [m], vertices counter-clockwise in the
-            platform frame, shape (m, 2); None: the MuJoCo plant's floor contacts
-            (:func:`pbvs_pin.mujoco_support.support_polygon`). Fewer than three vertices, or
-            ``criteria.com_margin`` None: tipping is not considered.
+        support: Points [m] in the platform frame whose convex hull is the platform's
+            support, shape (m, 2); None: the MuJoCo plant's floor contacts
+            (:func:`pbvs_pin.mujoco_support.support_polygon`). A hull of fewer than three
+            vertices, or ``criteria.com_margin`` None: tipping is not considered. If the
+            camera cannot look forward with the centre of mass kept inside, the home found
+            without it is returned (the MuJoCo plant warns that it tips).
 
     Returns:
         ``theta_h`` [rad or m], at least ``limit_margin`` of its range from each limit.
@@ -473,18 +485,20 @@ def compute_home(
     arm = _solve(kinematics, criteria, guesses, bounds, refine)
     if criteria.com_margin is None:
         return arm
-    if support is None:
-        from pbvs_pin.mujoco_support import support_polygon
+    from pbvs_pin.mujoco_stability import convex_hull
+    from pbvs_pin.mujoco_support import support_polygon
 
-        support = support_polygon(robot)
-    vertices = None if support is None else np.asarray(support, dtype=float).reshape(-1, 2)
-    if vertices is None or len(vertices) < 3:  # nothing to stand on, or no inside
+    support = support_polygon(robot) if support is None else convex_hull(support)
+    if support is None or len(support) < 3:  # nothing to stand on, or no inside
         return arm
-    kinematics.balance = _Balance(robot, vertices, 0.0)
+    kinematics.balance = _Balance(robot, support, 0.0)
     if kinematics.shortfall(arm) == 0.0:  # it does not tip: kept as found
         return arm
-    kinematics.balance = _Balance(robot, vertices, criteria.com_margin)
-    return _solve(kinematics, criteria, guesses, bounds, refine)
+    kinematics.balance = _Balance(robot, support, criteria.com_margin)
+    try:
+        return _solve(kinematics, criteria, guesses, bounds, refine)
+    except HomeNotFound:  # balanced, the camera cannot look forward: the plant will warn
+        return arm
 
 
 def _solve(

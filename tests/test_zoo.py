@@ -128,19 +128,20 @@ def test_vega_asks_for_a_loop_gain_the_net_must_cut_in_experiment4():
     """docs/zoo.rst's diagnosis of Vega-1's Experiment 4: with the shipped gains, the loop
     gain ``g = k T lambda_max(J J^T)`` its Jacobian asks for is above 2, the sampled loop's
     stability limit, in almost every sample, so the net cuts every feature gain (to at most
-    half); UR10, which holds the experiment, asks for about the margin (1), the reference
-    robot for less."""
+    half); UR10, which holds the experiment, asks for less than the margin (1) at its home
+    that keeps the Pioneer standing, the reference robot for less still."""
     asked, share = _asked_loop_gain("vega_1")
-    ur10, _ = _asked_loop_gain("pioneer_ur10")
+    ur10, ur10_share = _asked_loop_gain("pioneer_ur10")
     reference, reference_share = _asked_loop_gain("pioneer_cyton")
     assert asked > 2.0 and share > 0.95
-    assert 0.9 < ur10 < 1.2 and reference < 1.0 and reference_share == 0.0
+    assert 0.5 < ur10 < 1.0 and ur10_share == 0.0
+    assert reference < ur10 and reference_share == 0.0
     page = " ".join((ROBOTS.parent / "docs" / "zoo.rst").read_text().split())
     for sentence in (
         f"asks for a loop gain of {asked:.1f} (median over its first 10 s; the net cut the "
         f"gains in {100 * share:.1f} % of them)",
-        f"asks for {ur10:.1f} (a cut of a few percent); the reference robot asks for "
-        f"{reference:.1f} (no cut)",
+        f"asks for {ur10:.1f} (no cut; 1.0 and a cut of a few percent",
+        f"the reference robot asks for {reference:.1f} (no cut)",
     ):
         assert sentence in page, f"docs/zoo.rst no longer says {sentence!r}: measure again"
 
