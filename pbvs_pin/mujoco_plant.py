@@ -104,14 +104,26 @@ _CONTACT_AFFINITY = 1
 meet the ground but never each other."""
 
 
+WORLD_LINK = "world_link"
+"""What a link named ``world`` (an arm's root in example-robot-data's UR URDFs) is renamed."""
+
+
 def _strip_geometry(xml: str | bytes) -> bytes:
-    """The URDF without ``<visual>`` elements and without mesh ``<collision>`` elements."""
+    """The URDF without ``<visual>`` elements and mesh ``<collision>`` elements.
+
+    A link named ``world`` is renamed :data:`WORLD_LINK`: MuJoCo's URDF importer would merge
+    it, and the arm hanging from it, into its fixed world body.
+    """
     root = etree.fromstring(xml.encode() if isinstance(xml, str) else xml)
     for element in root.findall("link/visual"):
         element.getparent().remove(element)
     for element in root.findall("link/collision"):
         if element.find("geometry/mesh") is not None:
             element.getparent().remove(element)
+    for path, key in (("link", "name"), ("joint/parent", "link"), ("joint/child", "link")):
+        for element in root.findall(path):
+            if element.get(key) == "world":
+                element.set(key, WORLD_LINK)
     return etree.tostring(root)
 
 
