@@ -121,6 +121,8 @@ def constraint(spec: Any) -> str:
     meta, default = spec.metadata, spec.default
     if meta["choices"]:
         words = "one of " + ", ".join(f"``{c}``" for c in meta["choices"])
+    elif meta.get("names"):
+        words = "array of names or absent"
     elif meta["optional"] is not None:
         words = f"{meta['optional'].__name__} or absent"
     elif default is None or isinstance(default, tuple):
@@ -207,26 +209,45 @@ def sweep_page() -> str:
     return text
 
 
+GENERATED = ("api.rst", "internals.rst", "scenario_keys.rst", "sweep_keys.rst")
+"""The pages :func:`generate` writes from the code."""
+
+
 def generate(source: Path) -> None:
     """Write the hand-written and the generated pages into ``source``."""
     shutil.copytree(DOCS, source, ignore=shutil.ignore_patterns(*NOT_PAGES), dirs_exist_ok=True)
-    (source / "api.rst").write_text(api_page())
-    (source / "internals.rst").write_text(internals_page())
-    (source / "scenario_keys.rst").write_text(scenario_page())
-    (source / "sweep_keys.rst").write_text(sweep_page())
+    pages = (api_page, internals_page, scenario_page, sweep_page)
+    for name, page in zip(GENERATED, pages, strict=True):
+        (source / name).write_text(page())
 
 
 def build(out: Path) -> int:
-    """Generate the pages and run Sphinx with warnings as errors; return its exit status."""
+    """Generate the pages and run Sphinx with warnings as errors; say what was done.
+
+    Returns:
+        Sphinx's exit status (0: built without a warning).
+    """
     from sphinx.cmd.build import build_main
 
     with tempfile.TemporaryDirectory() as folder:
         source = Path(folder) / "source"
         generate(source)
-        return build_main(
+        pages = len(list(source.glob("*.rst")) + list(source.glob("*.md")))
+        print(f"building {pages} pages (4 generated: {', '.join(GENERATED)}) into {out}")
+        status = build_main(
             ["-W", "--keep-going", "-q", "-E", "-d", str(Path(folder) / "doctrees"),
              "-b", "html", str(source), str(out)]
         )  # fmt: skip
+    if status == 0:
+        written = len(list(Path(out).glob("*.html")))
+        print(f"documentation built: {written} HTML pages, no warning; open {out / 'index.html'}")
+    else:
+        print(
+            f"documentation NOT built (Sphinx status {status}): every Sphinx warning is an "
+            "error here; fix the warnings printed above",
+            file=sys.stderr,
+        )
+    return status
 
 
 if __name__ == "__main__":

@@ -19,6 +19,11 @@ napoleon_numpy_docstring = False
 napoleon_use_ivar = True  # dataclass "Attributes:" as fields, not duplicate attribute entries
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
+# ``npt.ArrayLike`` shows as ArrayLike, not as its expansion (a page-long Union)
+autodoc_type_aliases = {
+    "npt.ArrayLike": "numpy.typing.ArrayLike",
+    "ArrayLike": "numpy.typing.ArrayLike",
+}
 autodoc_default_options = {"members": True, "show-inheritance": True}
 
 smartquotes = False  # keys and values read as typed

@@ -17,6 +17,7 @@ import webbrowser
 from pathlib import Path
 
 import pbvs_pin
+from pbvs_pin.claims import verdict_text
 from pbvs_pin.experiments import run_scenario
 
 SHORT_RUN = 3.0  # simulated time of a --no-viz run [s]
@@ -41,6 +42,7 @@ def main() -> None:
     print(f"final feature error: {abs(error[-1]).max():.2f} px")
     for name in ("max_abs_error_final_window_px", "min_clearance_m", "target_lost_samples"):
         print(f"{name}: {summary.get(name)}")  # summary.json has every figure of merit
+    print(f"verdict: {verdict_text(summary)}")  # met, NOT met: <failed clauses>, not judged: <why>
     print(f"wrote {sorted(p.name for p in args.out.iterdir())} into {args.out}")
     if not args.no_viz:
         webbrowser.open(replay.resolve().as_uri())  # plays without a server

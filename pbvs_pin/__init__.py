@@ -13,6 +13,10 @@ capture times and laser readings in, velocity references out; built from
 :class:`ControllerSettings` or a scenario.
 """
 
+# interrupts first: a Ctrl-C while the command loads its modules is one line (its docstring)
+from pbvs_pin import interrupts as interrupts
+
+# isort: split
 from importlib.metadata import PackageNotFoundError, version
 
 # compile_cache (first, as sorted) keys Numba's cache on the kernels' sources
@@ -25,6 +29,7 @@ from pbvs_pin.control.settings import ControllerSettings
 from pbvs_pin.controller import Controller, ServoCommand
 from pbvs_pin.dynamics import DynamicTerms, rigid_body_terms
 from pbvs_pin.exceptions import (
+    BaseJointsError,
     ChainError,
     ControlInputError,
     DriveAxleNotFound,
@@ -49,6 +54,7 @@ from pbvs_pin.manipulability import (
     max_manipulability_posture,
     whole_body_manipulability,
 )
+from pbvs_pin.platform_frame import PlatformFrame
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.servo import ServoModel
 from pbvs_pin.sim.detection import ColourDetector, Detector, register_detector
@@ -73,6 +79,7 @@ except PackageNotFoundError:  # a source tree that was never installed
 __all__ = [
     "ROBOT_NAMES",
     "BaseAdapter",
+    "BaseJointsError",
     "CameraFrame",
     "CameraIntrinsics",
     "CameraSection",
@@ -101,6 +108,7 @@ __all__ = [
     "NonFiniteValue",
     "Omnidirectional",
     "PbvsError",
+    "PlatformFrame",
     "PointBehindCamera",
     "RobotNotFound",
     "RunLog",

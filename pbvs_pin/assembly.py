@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import copy
 import importlib.util
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,22 +28,24 @@ from lxml import etree
 from pbvs_pin import frames
 from pbvs_pin.base import DifferentialDrive, skid_steer_factor
 from pbvs_pin.exceptions import (
-    ChainError,
     DriveAxleNotFound,
     FrameNotFound,
     RobotNotFound,
     UrdfError,
+    WrongType,
 )
 from pbvs_pin.link_inertia import checked_density, fill_missing_inertias
 from pbvs_pin.shipped import shipped_urdf
 from pbvs_pin.urdf_checks import axisless_joints, check_physics, check_tree
+from pbvs_pin.validation import as_path
 
 DRIVE_ADVICE = (
     "The drive needs wheel_radius [m], track [m] (distance between the left and right wheels) "
     "and wheel_speed_limit [rad/s]: add them to the URDF (wheel joints with <limit "
     "velocity=...>, wheel links with cylinder or sphere geometry), or give them explicitly "
     "with base=DifferentialDrive(wheel_radius=..., track=..., max_wheel_speed=...), whose "
-    "planar joint then sits at the platform's root link"
+    "planar joint then sits at the platform's root link; a holonomic base needs none: "
+    'pass the base kind "omnidirectional"'
 )
 """What every DriveAxleNotFound message ends with: the drive parameters and where they go."""
 
@@ -63,6 +66,9 @@ class UrdfSource:
             (:func:`pbvs_pin.urdf_checks.balance_inertia`).
         filled_inertias: Links given the inertia of their geometry on loading
             (:func:`pbvs_pin.link_inertia.fill_missing_inertias`).
+        locked: Movable joints held at their neutral position although they may carry the
+            camera: those outside the arm's chain of a URDF carrying its own arm
+            (:func:`pbvs_pin.arm_chain.lock_outside_chain`).
     """
 
     robot: yourdfpy.Robot
@@ -71,6 +77,7 @@ class UrdfSource:
     axisless: frozenset[str] = frozenset()
     repaired_inertias: tuple[str, ...] = ()
     filled_inertias: tuple[str, ...] = ()
+    locked: tuple[str, ...] = ()
 
     def link_names(self) -> list[str]:
         """Names of all links."""
@@ -94,13 +101,44 @@ class UrdfSource:
             raise FrameNotFound(name, self.link_names(), self.label)
 
 
+def example_robot_data_alias(name: str) -> str | None:
+    """The example-robot-data name whose robot ``name`` really loads, if another's; else None.
+
+    example-robot-data's loader table maps some names to another robot's loader (``"ur3"`` to
+    the UR5's): ``name`` shares its loader with a name its URDF file is named after
+    (``ur5_robot.urdf``).
+    """
+    from example_robot_data.robots_loader import ROBOTS
+
+    loader = ROBOTS.get(name)
+    stem = Path(loader.urdf_filename or "").stem if loader is not None else ""
+    owners = [n for n, other in ROBOTS.items() if other is loader and stem.startswith(n)]
+    return None if not owners or stem.startswith(name) else owners[0]
+
+
 def _example_robot_data(name: str) -> tuple[Path, tuple[str, ...]] | None:
-    """URDF path and package folders of an example-robot-data robot, or None if unknown."""
+    """URDF path and package folders of an example-robot-data robot, or None if unknown.
+
+    Raises:
+        UrdfError: If example-robot-data maps ``name`` to another robot
+            (:func:`example_robot_data_alias`), saying which and what to write instead.
+    """
     from example_robot_data.robots_loader import ROBOTS
 
     if name not in ROBOTS:
         return None
     loader = ROBOTS[name]()
+    alias = example_robot_data_alias(name)
+    if alias is not None:
+        alternatives = [n for n in ROBOTS if n != name and n.startswith(name)]
+        raise UrdfError(
+            name,
+            f"example-robot-data maps {name!r} to the {alias!r} robot "
+            f"({Path(loader.df_path).name}), not to a robot of its own name: write "
+            f"{alias!r} for that robot"
+            + (f", or one of {', '.join(map(repr, alternatives))}" if alternatives else "")
+            + " (or a path to the .urdf file you mean)",
+        )
     robots_dir = Path(loader.model_path)
     return Path(loader.df_path), (str(robots_dir), str(robots_dir.parents[1]))
 
@@ -148,7 +186,8 @@ def _resolve(source: str | Path) -> tuple[Path, tuple[str, ...]]:
 
         from pbvs_pin.shipped import SHIPPED_URDFS
 
-        raise RobotNotFound(str(source), SHIPPED_URDFS, ROBOTS)
+        truthful = [name for name in ROBOTS if example_robot_data_alias(name) is None]
+        raise RobotNotFound(str(source), SHIPPED_URDFS, truthful)
     return erd
 
 
@@ -218,7 +257,11 @@ def load_urdf(
             do not form a tree, or its masses, inertias or limits are impossible
             (:mod:`pbvs_pin.urdf_checks`).
         RobotNotFound: If the name is neither a file nor a known robot.
+        WrongType: If ``source`` is not a path or a name.
     """
+    if not isinstance(source, str | os.PathLike) or str(source) == "":
+        raise WrongType("source", "a URDF path or a robot name (str or pathlib.Path)", source)
+    as_path("source", source)  # refuses a name the system cannot open ("File name too long")
     if geometry_density is not None:
         geometry_density = checked_density(geometry_density)
     path, package_dirs = _resolve(source)
@@ -461,52 +504,6 @@ def mount_arm(platform: UrdfSource, arm: UrdfSource, mount: pin.SE3) -> dict[str
     platform.filled_inertias += tuple(names[link] for link in arm.filled_inertias)
     platform.label = f"{platform.label} + {arm.label}"
     return names
-
-
-def keep_chain(source: UrdfSource, root: str | None, tip: str) -> None:
-    """Keep only the chain from ``root`` down to ``tip`` (in place).
-
-    Kept: the links on the path from ``root`` to ``tip``, and the links fixed to them through
-    fixed joints only (covers, sensor frames, a rigid hand). Dropped: everything else (a
-    second arm, a pedestal, a head, the movable fingers of a gripper), so it is in neither the
-    model, the plant nor the views. ``root`` becomes the description's root link.
-
-    Args:
-        source: The arm's description.
-        root: First link kept; the description's root link when None.
-        tip: Last link kept.
-
-    Raises:
-        FrameNotFound: If ``root`` or ``tip`` is not a link.
-        ChainError: If ``tip`` does not hang below ``root``.
-    """
-    root = root or source.root_link()
-    for link in (root, tip):
-        source.require_link(link)
-    joint_to = {joint.child: joint for joint in source.robot.joints}
-    path = [tip]
-    while path[-1] != root:
-        if path[-1] not in joint_to:
-            raise ChainError(
-                source.label,
-                f"link {tip!r} does not hang below link {root!r}; expected arm_tip below "
-                f"arm_root (the links above {tip!r}: {path[1:] or 'none'})",
-            )
-        path.append(joint_to[path[-1]].parent)
-    robot = source.robot
-    joints = [joint_to[link] for link in reversed(path[:-1])]
-    kept = set(path)
-    fixed = [joint for joint in robot.joints if joint.type == "fixed" and joint not in joints]
-    grown = True
-    while grown:
-        attached = [j for j in fixed if j.parent in kept and j.child not in kept]
-        kept.update(j.child for j in attached)
-        joints.extend(attached)
-        grown = bool(attached)
-    robot.links = [link for link in robot.links if link.name in kept]
-    robot.joints = [joint for joint in robot.joints if joint in joints]
-    source.repaired_inertias = tuple(link for link in source.repaired_inertias if link in kept)
-    source.filled_inertias = tuple(link for link in source.filled_inertias if link in kept)
 
 
 RENAMED_PACKAGE_DEPTH = 3

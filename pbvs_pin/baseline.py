@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from pbvs_pin.sim.log import RunLog
-from pbvs_pin.sim.metrics import AT_LIMIT, TRANSIENT
+from pbvs_pin.sim.log import AT_LIMIT, RunLog
+from pbvs_pin.sim.metrics import TRANSIENT
 from pbvs_pin.sim.scenario import Scenario, load_scenario
 
 GAIN_RULE_SCENARIO = "experiment1"
@@ -87,11 +87,12 @@ def comparison_figures(log: RunLog) -> dict[str, Any]:
         ``rms_after_transient_px``: RMS over the samples after
         :data:`~pbvs_pin.sim.metrics.TRANSIENT` of the feature error's norm, as the run
         tables' ``rms_error_after_transient_px``; ``min_clearance_m`` (None without obstacles);
-        ``saturated_samples``, the samples in which the law scaled ``u`` down to the limits,
-        and ``v_ref_at_limit_samples``, those in which a component of the commanded velocity
-        ``v_ref`` sits at its limit (:data:`pbvs_pin.sim.metrics.AT_LIMIT`): a law that never
-        scales ``u`` (the classic IBVS law reaches its limits through the compensation) shows
-        its saturation in the second count.
+        ``saturated_samples``, the samples in which the limits cut the command (the law
+        scaled ``u`` down, or the compensator clipped ``v_ref``:
+        :func:`pbvs_pin.sim.log.command_limited`; the classic IBVS law reaches its limits
+        through the compensation), and ``v_ref_at_limit_samples``, those in which a component
+        of the commanded velocity ``v_ref`` sits at its limit
+        (:data:`pbvs_pin.sim.log.AT_LIMIT`).
     """
     t = log["t"]
     largest = np.max(np.abs(log["xi_true"] - log["xi_d"]), axis=1)
@@ -132,7 +133,7 @@ def baseline_section(pairs: list[tuple[str, dict, dict]], gain: float) -> str:
         "objectives, saturation and dynamics as the passivity law. Gain rule: " + GAIN_RULE + ".",
         "",
         f"| experiment | law | time to max abs error < {SETTLED_PX:g} px for good [s] | "
-        f"RMS error after {TRANSIENT:g} s [px] | min clearance [m] | u scaled to limits "
+        f"RMS error after {TRANSIENT:g} s [px] | min clearance [m] | command limited "
         "[samples] | v_ref at a limit [samples] | better RMS |",
         "|---|---|---|---|---|---|---|---|",
     ]

@@ -13,14 +13,16 @@ compute_home gives for it.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree
 
 import numpy as np
 
+from pbvs_pin.assembly import example_robot_data_alias
 from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.exceptions import RobotNotFound
+from pbvs_pin.exceptions import RobotNotFound, WrongType
 from pbvs_pin.home import compute_home
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.shipped import shipped_urdf
@@ -114,13 +116,15 @@ def example_robot_data_arms() -> list[str]:
     tree branches, holding at least half of its moving joints (:func:`chain_joints`; a
     gripper's fingers may branch off its end): hands (fingers branch at the palm), torsos
     carrying two arms, mobile robots (wheels branch at the base) and two-joint pendulums are
-    not arms. Read from each URDF's joint tags; no model is built.
+    not arms. A name example-robot-data maps to another robot's loader (``"ur3"`` loads the
+    UR5: :func:`pbvs_pin.assembly.example_robot_data_alias`) is left out. Read from each URDF's
+    joint tags; no model is built.
     """
     from example_robot_data.robots_loader import ROBOTS, getModelPath
 
     arms = []
     for name, loader in ROBOTS.items():
-        if loader.free_flyer or not loader.urdf_filename:
+        if loader.free_flyer or not loader.urdf_filename or example_robot_data_alias(name):
             continue
         relative = Path(loader.path) / loader.urdf_subpath / loader.urdf_filename
         urdf = Path(getModelPath(str(relative))) / relative
@@ -213,5 +217,8 @@ def load_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileManip
 
     Raises:
         RobotNotFound: If the name is unknown.
+        WrongType: If ``name`` is not text or a path.
     """
+    if not isinstance(name, str | os.PathLike) or str(name) == "":
+        raise WrongType("name", "a robot name or a URDF path (str or pathlib.Path)", name)
     return build_robot(name, camera)

@@ -26,14 +26,21 @@ from pbvs_pin.exceptions import (
     GainError,
     PbvsError,
     RobotNotFound,
-    RunInterrupted,
-    ScenarioError,
     UsageError,
     ViewerUnavailable,
 )
-from pbvs_pin.interrupts import held_interrupts, interrupted_in_compiled_code
+from pbvs_pin.interrupts import (
+    INTERRUPTED,
+    finished,
+    held_interrupts,
+    interrupted_in_compiled_code,
+    interrupted_line,
+    loaded,
+    stage,
+)
 from pbvs_pin.outputs import Output, check_output, replace_run_folder
 from pbvs_pin.report import ENGINE_ROBOTS
+from pbvs_pin.ros.commands import add_arguments as ros_arguments
 from pbvs_pin.validation import positive_number
 from pbvs_pin.zoo import add_arguments as zoo_arguments
 from pbvs_pin.zoo import command as zoo_command
@@ -56,17 +63,11 @@ def load_robot_argument(argument: str) -> MobileManipulator:
             its robot cannot be built (naming the dotted field).
     """
     from pbvs_pin.catalogue import build_robot
-    from pbvs_pin.sim.scenario import load_scenario
+    from pbvs_pin.experiments import robot_file
 
     if Path(argument).suffix.lower() != ".toml":
         return build_robot(argument)
-    if not Path(argument).is_file():
-        raise ScenarioError(argument, "", "no such robot or scenario file")
-    scenario = load_scenario(argument)
-    if "robot" not in tomllib.loads(Path(argument).read_text()):
-        raise ScenarioError(
-            argument, "robot", 'no [robot] table; add one, e.g. [robot] name = "pioneer_cyton"'
-        )
+    scenario = robot_file(argument)
     return scenario.robot.build(scenario.camera.intrinsics())
 
 
@@ -106,7 +107,17 @@ def _normalised(text: str) -> str:
 
 
 def _list(args: argparse.Namespace) -> None:
-    """Print the shipped robots, example-robot-data arms, scenarios and sweeps."""
+    """Print the shipped robots, example-robot-data arms, scenarios and sweeps.
+
+    With ``--keys``: every scenario key instead
+    (:func:`pbvs_pin.sim.scenario.key_lines`).
+    """
+    if args.keys:  # what --set changes
+        from pbvs_pin.sim.scenario import key_lines
+
+        print("scenario keys (pbvs-pin run SCENARIO --set KEY=VALUE; VALUE is read as TOML):")
+        print("\n".join(f"  {line}" for line in key_lines()))
+        return
     from pbvs_pin.catalogue import example_robot_data_arms
     from pbvs_pin.sim.scenario import shipped_scenarios
     from pbvs_pin.sweep.spec import sweep_dir
@@ -164,20 +175,6 @@ def _setting(text: str) -> tuple[str, object]:
     return key.strip(), parsed
 
 
-def _verdict(summary: dict) -> str | None:
-    """One line: whether a shipped experiment's run meets the paper's claim, and the rule."""
-    from pbvs_pin.report import CLAIMS, claim_met
-
-    met = claim_met(summary)
-    if met is None:
-        return None
-    claim = CLAIMS[summary["scenario"]]
-    return (
-        f"verdict: {summary['scenario']} {'meets' if met else 'does NOT meet'} the paper's "
-        f"claim ({claim.text}); rule: {claim.rule}"
-    )
-
-
 def _run(args: argparse.Namespace) -> None:
     """Run one scenario, optionally with a live Meshcat view (the run goes on without one)."""
     from pbvs_pin.experiments import run_scenario
@@ -202,19 +199,28 @@ def _run(args: argparse.Namespace) -> None:
                 f"pbvs-pin: no live view ({err.reason}); running without it; {watch}",
                 file=sys.stderr,
             )
+    eye = args.eye_view
     if live is None:
-        summary = run_scenario(scenario, out, html)[1]
+        summary = run_scenario(scenario, out, html, eye_view=eye)[1]
     else:
         with live:
             print(f"live view: {live.url} (playing at {speed:g}x real time)")
-            summary = run_scenario(scenario, out, html, observer=live.show)[1]
-    from pbvs_pin.sim.log import json_safe
+            summary = run_scenario(scenario, out, html, observer=live.show, eye_view=eye)[1]
+    from pbvs_pin.claims import verdict_lines
 
-    print(json.dumps(json_safe(summary), indent=2))
-    print(f"log, summary and figures written to {out}" + (f"; replay: {html}" if html else ""))
-    verdict = _verdict(summary)
+    verdict = verdict_lines(summary)
     if verdict is not None:
         print(verdict)
+    if args.json:
+        from pbvs_pin.sim.log import json_safe
+
+        print(json.dumps(json_safe(summary), indent=2))
+    suffix = "mp4" if eye == "video" else "png"
+    eye_file = f"; robot's-eye view: {out / f'eye_view.{suffix}'}" if eye else ""
+    print(
+        f"log, summary (summary.json{'' if args.json else '; --json prints it'}) and figures "
+        f"written to {out}" + (f"; replay: {html}" if html else "") + eye_file
+    )
 
 
 def _compile(args: argparse.Namespace) -> None:
@@ -225,16 +231,15 @@ def _compile(args: argparse.Namespace) -> None:
     """
     import time
 
-    from pbvs_pin.compile_cache import COMPILE_NOTICE, kernels_cached
+    from pbvs_pin.compile_cache import announce_compiles
     from pbvs_pin.sim.loop import simulate
     from pbvs_pin.sim.scenario import load_scenario
 
-    print(
-        "control kernels already compiled; checking them" if kernels_cached() else COMPILE_NOTICE,
-        flush=True,
-    )
     started = time.perf_counter()
-    simulate(load_scenario("experiment1").with_values(duration=0.1))
+    with announce_compiles(stream=sys.stdout) as announcer:
+        simulate(load_scenario("experiment1").with_values(duration=0.1))
+    if not announcer.compiled:
+        print("control kernels already compiled; checked them", flush=True)
     elapsed = time.perf_counter() - started
     print(f"done in {elapsed:.1f} s; runs start at once from now on", flush=True)
 
@@ -270,7 +275,8 @@ def _view(args: argparse.Namespace) -> None:
 
 
 def _zoo(args: argparse.Namespace) -> None:
-    """``pbvs-pin zoo``: :func:`pbvs_pin.zoo.command`."""
+    """``pbvs-pin zoo``: :func:`pbvs_pin.zoo.command`, its ``--set`` read as ``run``'s."""
+    args.changes = dict(_setting(text) for text in args.set)
     zoo_command(args)
 
 
@@ -366,8 +372,9 @@ class _DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
     def _get_help_string(self, action: argparse.Action) -> str:
         if action.default is None or action.default is False:
             return action.help or ""
-        if isinstance(action.default, list):
-            return f"{action.help} (default: {' '.join(action.default)})"
+        if isinstance(action.default, list):  # an empty list is no default to show
+            shown = " ".join(action.default)
+            return f"{action.help} (default: {shown})" if shown else action.help or ""
         return super()._get_help_string(action) or ""
 
 
@@ -394,6 +401,12 @@ def build_parser() -> argparse.ArgumentParser:
     listing = commands.add_parser(
         "list", help="name the shipped robots, example-robot-data arms, scenarios and sweeps"
     )
+    listing.add_argument(
+        "--keys",
+        action="store_true",
+        help="list every scenario key instead (what `run --set KEY=VALUE` changes), with its "
+        "default and meaning",
+    )
     listing.set_defaults(handler=_list)
     run = commands.add_parser("run", help="simulate one scenario (shipped name or TOML path)")
     run.add_argument(
@@ -401,22 +414,31 @@ def build_parser() -> argparse.ArgumentParser:
         help="shipped scenario name (experiment1 ... experiment4; see `pbvs-pin list`) or a "
         "scenario TOML file",
     )
-    run.add_argument(
-        "--robot", help="robot instead of the scenario's: " + ROBOT_HELP.replace(" or a ", ", a ")
-    )
+    run.add_argument("--robot", help="robot instead of the scenario's: " + ROBOT_HELP)
     run.add_argument(
         "--set",
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="change a scenario key, e.g. --set camera.rate=60 --set target.xi_d=[0,50,-50] "
-        "(repeatable; `pbvs-pin run --help` keys are those of the scenario reference)",
+        help="change one key of the scenario for this run: a dotted key (TABLE.KEY, or KEY "
+        "at the top) and a TOML value, e.g. --set camera.rate=60 --set "
+        "target.xi_d=[0,50,-50] --set controller.law=ibvs; repeatable; `pbvs-pin list "
+        "--keys` lists every key with its default and meaning",
     )
     run.add_argument("--engine", choices=("pinocchio", "mujoco"), help="physics of the plant")
     run.add_argument("--duration", type=_positive_float, help="simulated time [s]")
     output_option(run, "--out", Output.RUN_FOLDER, default="results/run", help="output folder")
     output_option(run, "--html", Output.FILE, help="also write a standalone HTML replay here")
     run.add_argument("--force", action="store_true", help=FORCE_HELP)
+    run.add_argument(
+        "--eye-view",
+        choices=("strip", "video"),
+        help="also save the robot's-eye view (what the camera saw, marked) in OUT: strip as "
+        "eye_view.png, video as eye_view.mp4; a --html replay then shows it",
+    )
+    run.add_argument(
+        "--json", action="store_true", help="also print the summary (OUT/summary.json) as JSON"
+    )
     run.add_argument("--meshcat", action="store_true", help="open a live Meshcat view")
     run.add_argument(
         "--speed",
@@ -428,7 +450,12 @@ def build_parser() -> argparse.ArgumentParser:
         "compile",
         help="compile the control kernels now (once after installing; else the first run does)",
     )
-    compiling.set_defaults(handler=_compile, simulates=True)
+    compiling.set_defaults(
+        handler=_compile,
+        simulates=True,
+        interrupted=lambda args: "the kernels compiled before it stay cached, the others "
+        "compile on the next run",
+    )
     reproduce = commands.add_parser("reproduce", help="run the paper's four experiments")
     output_option(reproduce, "--out", Output.RUN_FOLDER, default="results", help="output folder")
     reproduce.add_argument("--force", action="store_true", help=FORCE_HELP)
@@ -459,7 +486,12 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="skip the comparison of the compensation modes (8 runs)",
     )
-    reproduce.set_defaults(handler=_reproduce, simulates=True)
+    reproduce.set_defaults(
+        handler=_reproduce,
+        simulates=True,
+        interrupted=lambda args: f"the runs finished before it are kept in {args.out}; the "
+        "report was not written",
+    )
     view = commands.add_parser("view", help="show a robot, its camera frame and frustum")
     view.add_argument("robot", help=ROBOT_HELP)
     output_option(
@@ -488,50 +520,63 @@ def build_parser() -> argparse.ArgumentParser:
     zoo = commands.add_parser("zoo", help="the four experiments on every robot file of a folder")
     zoo_arguments(zoo, output_option)
     zoo.set_defaults(handler=_zoo)
+    ros = commands.add_parser("ros", help="the controller as a ROS 2 node; a simulated ROS robot")
+    ros_arguments(ros, output_option, _run_scenario)
     return parser
-
-
-INTERRUPTED = 130
-"""Exit status after Ctrl-C (128 + SIGINT), as a shell reports it."""
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status."""
-    args = build_parser().parse_args(argv)
-    handler: Callable[[argparse.Namespace], None] = args.handler
+    args = None
     try:
+        loaded()  # from here on a Ctrl-C is a KeyboardInterrupt, told in one line below
+        stage("start-up")
+        args = build_parser().parse_args(argv)
+        handler: Callable[[argparse.Namespace], None] = args.handler
         check_outputs(args)
+        if not args.simulates:
+            stage("command")
         with held_interrupts() if args.simulates else nullcontext():
             handler(args)
     except PbvsError as err:
         print(f"pbvs-pin: error: {err}", file=sys.stderr)
         return 2
-    except RunInterrupted as stop:
-        print(f"pbvs-pin: {_interrupted(stop)}", file=sys.stderr)
-        return INTERRUPTED
-    except KeyboardInterrupt:
-        print("pbvs-pin: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as stop:
+        print(f"pbvs-pin: {interrupted_line(stop, _interrupt_note(args))}", file=sys.stderr)
         return INTERRUPTED
     except SystemError as err:  # Ctrl-C outside a simulation, inside a compiled kernel
         if not interrupted_in_compiled_code(err):
             raise
-        print("pbvs-pin: interrupted", file=sys.stderr)
+        line = interrupted_line(KeyboardInterrupt(), _interrupt_note(args))
+        print(f"pbvs-pin: {line}", file=sys.stderr)
         return INTERRUPTED
     except BrokenPipeError:  # e.g. `pbvs-pin list | head`: the reader left, nothing to say
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+    except OSError as err:  # a system error no file door caught: one line all the same
+        print(f"pbvs-pin: error: {err.filename or ''}: {err.strerror or err}", file=sys.stderr)
+        return 2
+    finally:
+        finished()
     return 0
 
 
-def _interrupted(stop: RunInterrupted) -> str:
-    """One line: where the run stopped and where the run so far is."""
-    if stop.log is None:
-        return "interrupted before the first logged step; nothing was saved"
-    log = stop.log
-    stopped = f"interrupted at t = {log['t'][-1]:.2f} s of {log.meta['duration']:g} s"
-    if stop.saved is None:
-        return f"{stopped}; the run so far was not saved"
-    return f"{stopped}; the run so far is in {stop.saved} (meta interrupted = true)"
+def _interrupt_note(args: argparse.Namespace | None) -> str:
+    """What a command adds to the line of an interruption.
+
+    Its ``interrupted`` default, or, for a command that holds no Ctrl-C, what it may have
+    written.
+    """
+    note = getattr(args, "interrupted", None)
+    if note is not None:
+        return note(args)
+    if args is None or args.simulates:
+        return ""
+    paths = [getattr(args, dest) for dest, _ in getattr(args, "outputs", ())]
+    paths = [str(path) for path in paths if path is not None]
+    if not paths:
+        return "nothing was written"
+    return f"what it wrote to {', '.join(paths)} before it is kept; the rest was not written"
 
 
 if __name__ == "__main__":

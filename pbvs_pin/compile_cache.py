@@ -2,9 +2,10 @@
 
 The kernels (``@njit(cache=True)`` functions of the package's modules) are compiled on their
 first call and cached on disk. The first run on a machine therefore spends about
-:data:`COMPILE_SECONDS` compiling before its first step; :func:`compile_notice` says so, once,
-and says nothing when the cache is warm. ``pbvs-pin compile`` does the same compile as an
-explicit step, right after installing (:mod:`pbvs_pin.cli`).
+:data:`COMPILE_SECONDS` compiling before its first step; :func:`announce_compiles` says so,
+once, when a kernel really compiles (Numba's ``numba:compile`` event, which fires only after
+the disk cache missed), and says nothing when the cache is warm. ``pbvs-pin compile`` does the
+same compile as an explicit step, right after installing (:mod:`pbvs_pin.cli`).
 
 **The cache key.** Importing this module (the package's ``__init__`` does, before any other
 module) keys the cache. Numba checks a cached kernel against its own source file only, but the
@@ -19,12 +20,16 @@ under ``NUMBA_CACHE_DIR`` when it is set, else under the user's cache folder
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import platform
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TextIO
+
+from numba.core import event
 
 PACKAGE = Path(__file__).resolve().parent
 """The installed package's folder."""
@@ -79,7 +84,7 @@ COMPILE_NOTICE = (
     f"compiling the control kernels (once, about {COMPILE_SECONDS} s; "
     "`pbvs-pin compile` does it ahead of a run)"
 )
-"""What :func:`compile_notice` prints before a cold compile."""
+"""What :func:`announce_compiles` prints when a kernel compiles."""
 
 
 def cached_kernels() -> list:
@@ -119,13 +124,49 @@ def kernels_cached() -> bool:
         return True
 
 
-def compile_notice(stream: TextIO | None = None) -> bool:
-    """Print :data:`COMPILE_NOTICE` on ``stream`` (stderr) if the kernels are not cached yet.
+class CompileAnnouncer(event.Listener):
+    """Prints :data:`COMPILE_NOTICE` at the first compile of one of the package's kernels.
 
-    Returns:
-        Whether the notice was printed.
+    A listener of Numba's ``numba:compile`` event, which Numba raises only when it compiles
+    (after its disk cache missed), never when it loads a cached kernel.
+
+    Args:
+        stream: Where the notice goes (stderr when None).
+        enabled: Print the notice (else only :attr:`compiled` is kept).
+
+    Attributes:
+        compiled: How many of the package's kernels compiled while it listened.
     """
-    if kernels_cached():
-        return False
-    print(COMPILE_NOTICE, file=stream or sys.stderr, flush=True)
-    return True
+
+    def __init__(self, stream: TextIO | None = None, enabled: bool = True) -> None:
+        self.stream, self.enabled, self.compiled = stream, enabled, 0
+
+    def on_start(self, compile_event: object) -> None:
+        """A compile starts: announce it if it is the package's first."""
+        function = getattr(compile_event.data["dispatcher"], "py_func", None)
+        if not getattr(function, "__module__", "").startswith(PACKAGE.name):
+            return
+        self.compiled += 1
+        if self.compiled == 1 and self.enabled:
+            print(COMPILE_NOTICE, file=self.stream or sys.stderr, flush=True)
+
+    def on_end(self, compile_event: object) -> None:
+        """A compile ended (nothing to do)."""
+
+
+@contextlib.contextmanager
+def announce_compiles(
+    enabled: bool = True, stream: TextIO | None = None
+) -> Iterator[CompileAnnouncer]:
+    """Within the block, print :data:`COMPILE_NOTICE` once if a package kernel compiles.
+
+    Args:
+        enabled: Print the notice; False only counts the compiles.
+        stream: Where the notice goes (stderr when None).
+
+    Yields:
+        The listener: its ``compiled`` counts the package's kernels compiled in the block.
+    """
+    announcer = CompileAnnouncer(stream, enabled)
+    with event.install_listener("numba:compile", announcer):
+        yield announcer

@@ -27,11 +27,17 @@ Inside, in the order of the paper's Fig. 3:
    eq. (20), in one compiled call (:mod:`pbvs_pin.control.step`) for the passivity law with
    the built-in objectives.
 
-Bad input at run time: a wrong shape, a non-finite encoder value, time going backwards or a
-frame captured after ``t`` raise the project's error naming the argument, and leave the
-controller as it was; a frame older than the newest one, older than the encoder history, or
-with non-finite or non-positive depths is not used (``ServoCommand.rejected`` says why; a
-frame whose values are not usable counts as one that does not show the target); a jump of
+Bad input at run time: a wrong type or shape, a non-finite encoder value, a value beyond the
+physical bounds of :mod:`pbvs_pin.control.bounds` in ``t``, ``q``, ``v`` or
+``target_velocity``, time going backwards or a frame captured more than
+:data:`~pbvs_pin.control.bounds.CLOCK_JITTER` after ``t`` raise the project's error naming the
+argument, and leave the controller as it was. Each input is converted once, at this door, to
+the float64 arrays the compiled step was compiled for (lists, integers, float32, read-only
+and non-contiguous arrays alike). A frame older than the newest one, older than the encoder
+history, or with non-finite or non-positive depths is not used (``ServoCommand.rejected`` says
+why; a frame whose values are not usable counts as one that does not show the target); a
+frame or a laser reading beyond the bounds, and a frame that fails the innovation gate of
+:mod:`pbvs_pin.control.gating`, are dropped and counted (:attr:`Controller.counts`); a jump of
 the odometry (a platform pose that the velocity limits cannot reach in one step) drops the
 measurement, which was placed with the old odometry. ``v_ref`` is always finite and within
 the velocity limits.
@@ -49,9 +55,11 @@ import pinocchio as pin
 
 from pbvs_pin.camera import MIN_DEPTH
 from pbvs_pin.camera_frame import CameraFrame
-from pbvs_pin.compile_cache import compile_notice
-from pbvs_pin.control import layout
+from pbvs_pin.compile_cache import announce_compiles
+from pbvs_pin.control import bounds, layout
+from pbvs_pin.control.balanced import joint_room
 from pbvs_pin.control.encoders import TIME_TOLERANCE, EncoderHistory
+from pbvs_pin.control.gating import FaultCounts, InnovationGate
 from pbvs_pin.control.kinematic import ControlOutput
 from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
 from pbvs_pin.control.settings import (
@@ -65,10 +73,12 @@ from pbvs_pin.control.settings import (
 from pbvs_pin.control.step import FusedControlStep
 from pbvs_pin.control.tracking import TargetTracker
 from pbvs_pin.control.upright import upright_row
+from pbvs_pin.estimation import velocity_filter
 from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
 from pbvs_pin.features import ImageMeasurement, TwoSphereFeatures
-from pbvs_pin.robot import UNIT_TOLERANCE, MobileManipulator, arm_angles
-from pbvs_pin.validation import as_array
+from pbvs_pin.joint_angles import arm_angles
+from pbvs_pin.robot import UNIT_TOLERANCE, MobileManipulator
+from pbvs_pin.validation import as_array, as_instance, as_number, as_numbers
 
 JUMP_SLACK = (0.05, 0.1)
 """Platform motion in one step [m, rad] beyond the velocity limits' reach that counts as an
@@ -99,8 +109,9 @@ class ServoCommand:
         frame_age: ``t`` minus the capture time of the newest measurement [s]; inf before
             the first.
         latency: The newest frame's age when it arrived [s]; NaN before the first.
-        rejected: Why the frame given to this step was not used; empty when it was (or none
-            was given).
+        rejected: Why the frame or the laser reading given to this step was not used (not
+            after the newest, out of the encoder history, beyond the bounds, failed the gate);
+            empty when they were (or none was given).
         odometry_jumped: The platform pose jumped; the measurement was dropped.
         v2: ``V2 = |v - u|^2 / 2`` of eq. (22).
     """
@@ -130,8 +141,8 @@ class Controller:
         controller = Controller.from_scenario(load_scenario("experiment1"), robot)
 
     It compiles its kernels (or loads them from Numba's cache) when it is built, saying so on
-    stderr when a compile is needed (``announce``), so that its first step is as fast as the
-    next.
+    stderr when a kernel really compiles (``announce``), so that its first step is as fast as
+    the next.
 
     Args:
         robot: The controller's model of the robot; the camera intrinsics are the settings'.
@@ -149,6 +160,8 @@ class Controller:
         objectives: The secondary objectives.
         tracker: The newest measurement, prediction, hold and velocity filter.
         history: The encoder readings of the last ``settings.history`` seconds.
+        counts: Frames and laser readings dropped or changed since the controller was built
+            or reset (:class:`~pbvs_pin.control.gating.FaultCounts`).
     """
 
     def __init__(
@@ -157,7 +170,9 @@ class Controller:
         settings: ControllerSettings | None = None,
         announce: bool = True,
     ) -> None:
-        settings = settings if settings is not None else ControllerSettings()
+        robot = as_instance("robot", robot, MobileManipulator)
+        settings = ControllerSettings() if settings is None else settings
+        settings = as_instance("settings", settings, ControllerSettings)
         camera = settings.camera.intrinsics()
         if robot.camera != camera:
             robot = copy.copy(robot)
@@ -173,9 +188,8 @@ class Controller:
         self._root_q = _planar_root_slice(robot.model)
         self._nq = robot.model.nq
         self.reset()
-        if announce:
-            compile_notice()
-        self._warm_up()
+        with announce_compiles(announce):
+            self._warm_up()
 
     @classmethod
     def from_scenario(
@@ -207,8 +221,17 @@ class Controller:
         self.law = kinematic_law(settings, model, self.latency)
         self.compensator = compensator(settings, model)
         self.objectives = secondary_objectives(settings, model, self.posture_target)
+        self._arm_limits = model.arm_position_limits()
         spec = settings.estimator
-        self.tracker = TargetTracker(model, spec.filter(), spec.predict, spec.hold, spec.smoothing)
+        self.counts = FaultCounts()
+        gate = InnovationGate(
+            settings.camera.noise_px, model.camera.focal_px, settings.target.diameter,
+            self.features.n_points, self.counts,
+        )  # fmt: skip
+        estimator = velocity_filter(spec.alpha, spec.beta, spec.process_noise)
+        self.tracker = TargetTracker(
+            model, estimator, spec.predict, spec.hold, spec.smoothing, gate
+        )
         self.history.clear()
         self.fused = None
         if FusedControlStep.supports(self.law, self.objectives):
@@ -219,6 +242,7 @@ class Controller:
         self._t = -np.inf
         self._previous_root: tuple[float, float, float, float] | None = None
         limits = self.law.velocity_limits
+        self._v_bound = tuple((bounds.VELOCITY_BOUND * np.asarray(limits)).tolist())
         self._jump_limits = (2 * limits[0], 2 * limits[model.n_base - 1])
         """Twice the platform's speed limits [m/s, rad/s]: beyond, the odometry jumped."""
         self._newest_capture = -np.inf
@@ -253,14 +277,20 @@ class Controller:
             The velocity references and what the step saw.
 
         Raises:
+            WrongType: If an argument is not numbers (text, a bool, an object, a ragged list).
             ShapeError: If an array has the wrong shape.
             NonFiniteValue: If ``t``, ``q``, ``v``, ``laser`` or ``target_velocity`` is NaN
                 or infinite (a range of ``inf`` is allowed).
-            ControlInputError: If ``t`` is not after the previous step's, or the frame was captured
-                after ``t``.
+            GainError: If a ``(cos, sin)`` pair of ``q`` is not unit.
+            ControlInputError: If ``t`` is not after the previous step's or more than
+                :data:`~pbvs_pin.control.bounds.MAX_STEP_GAP` after it; if an entry of ``q``,
+                ``v`` or ``target_velocity`` is beyond its bound
+                (:mod:`pbvs_pin.control.bounds`); if the frame is not a CameraFrame or was
+                captured more than :data:`~pbvs_pin.control.bounds.CLOCK_JITTER` after ``t``;
+                with ``estimator.kind = "exact"`` and no ``target_velocity``.
         """
         t, q, v, laser, given = self._checked(t, q, v, laser, target_velocity)
-        shown = self._frame_arrays(frame, t)
+        capture, shown = self._frame_arrays(frame, t)
         dt = self.period if self._t == -np.inf else t - self._t
         if abs(dt - self.period) <= TIME_TOLERANCE:
             dt = self.period
@@ -270,11 +300,18 @@ class Controller:
             self.history.clear()
             self.tracker.forget()
         self.history.record(t, q)
-        if laser is not None:
-            self.laser = laser
         rejected = ""
         if frame is not None:
-            rejected = self._take(frame.capture_time, shown, t, self._velocity(given))
+            if frame.capture_time > t:  # within the clock's jitter: taken as captured now
+                self.counts.clock_jitter += 1
+            rejected = self._take(capture, shown, t, self._velocity(given))
+        if laser is not None:
+            fault = bounds.laser_fault(laser[0], laser[1])
+            if fault:
+                self.counts.laser_dropped += 1
+                rejected = f"{rejected}; {fault}" if rejected else fault
+            else:
+                self.laser = laser
         velocity = self._velocity(given)
         u, v_ref, v2, error, seen = self._command(t, q, v, velocity, dt)
         tracker = self.tracker
@@ -293,25 +330,29 @@ class Controller:
 
     def _checked(self, t, q, v, laser, target_velocity) -> tuple:
         """The inputs as float arrays, checked (see :meth:`step`'s Raises)."""
-        try:
-            t = float(t)
-        except (TypeError, ValueError):
-            t = as_array("t", t, ())  # raises the error that names t
+        if type(t) is not float:
+            t = as_number("t", t)  # text, bools and objects refused, naming t
         if not math.isfinite(t):
             raise NonFiniteValue("t")
         if not t > self._t:
             raise ControlInputError(f"t = {t:g} s is not after the previous step's ({self._t:g} s)")
+        bounds.check_time_gap(t, self._t)
         model = self.model
         if not self._usable_as_given(q, v):  # the full checks name the argument at fault
             q, v = model.check_configuration(q), model.check_velocity(v)
+            # one conversion: the C-ordered, writable float64 the kernels were compiled for
+            q, v = np.require(q, FLOAT64, "CW"), np.require(v, FLOAT64, "CW")
+        bounds.check_configuration_bounds(q)
+        bounds.check_velocity_bounds(v, self._v_bound)
         if laser is not None:
-            laser = np.array(laser, dtype=float)
+            laser = as_numbers("laser", laser).copy()  # WrongType for text
             if laser.shape != (2,):
                 raise ShapeError("laser", (2,), laser.shape)
             if math.isnan(laser[0]) or not math.isfinite(laser[1]):
                 raise NonFiniteValue("laser")
         if target_velocity is not None:
-            target_velocity = as_array("target_velocity", target_velocity, (3,))
+            target_velocity = as_array("target_velocity", target_velocity, (3,)).copy()
+            bounds.check_target_speed(target_velocity)
         elif self._exact:
             raise ControlInputError(
                 'estimator.kind = "exact" needs target_velocity at every step; give it, or '
@@ -322,8 +363,8 @@ class Controller:
     def _usable_as_given(self, q: object, v: object) -> bool:
         """Whether ``q`` and ``v`` pass the quick checks of the 1 kHz path.
 
-        They pass as float64 vectors of the right sizes, finite, with the configuration's
-        angles unit.
+        They pass as C-ordered, writable float64 vectors of the right sizes, finite, with the
+        configuration's angles unit.
         """
         return (
             _plain(q, self._nq)
@@ -338,33 +379,38 @@ class Controller:
 
     def _frame_arrays(
         self, frame: CameraFrame | None, t: float
-    ) -> tuple[np.ndarray, np.ndarray] | None:
-        """A frame's points and depths as float arrays of the right shapes (None: not visible).
+    ) -> tuple[float, tuple[np.ndarray, np.ndarray] | None]:
+        """A frame's capture time, and its points and depths (None: not visible).
+
+        The points and depths are float arrays of the right shapes. A capture up to
+        :data:`~pbvs_pin.control.bounds.CLOCK_JITTER` after ``t`` is taken as ``t``.
+        The arrays are copies, C-ordered and writable (the kernels' own type).
 
         Raises:
             ControlInputError: If ``frame`` is not a CameraFrame or None, or was captured
-                after ``t`` or at no finite time.
+                more than ``CLOCK_JITTER`` after ``t`` or at no finite time.
             ShapeError: If its points or depths have the wrong shape.
         """
         if frame is None:
-            return None
+            return -np.inf, None
         if not isinstance(frame, CameraFrame):
             raise ControlInputError(f"frame: expected a CameraFrame or None, got {frame!r}")
-        if not -np.inf < frame.capture_time <= t + TIME_TOLERANCE:
+        capture = frame.capture_time
+        if not -np.inf < capture <= t + bounds.CLOCK_JITTER:
             raise ControlInputError(
-                f"frame captured at {frame.capture_time!r} s, after now ({t:g} s); expected "
-                "the capture time on the controller's clock"
+                f"frame captured at {capture!r} s, more than {bounds.CLOCK_JITTER:g} s after "
+                f"now ({t:g} s); expected the capture time on the controller's clock"
             )
         if not frame.visible:
-            return None
+            return min(capture, t), None
         k = self.features.n_points
-        points = np.asarray(frame.points, dtype=float)
-        depths = np.asarray(frame.depths, dtype=float)
+        points = np.array(frame.points, dtype=float)
+        depths = np.array(frame.depths, dtype=float)
         if points.shape != (k, 2):
             raise ShapeError("frame.points", (k, 2), points.shape)
         if depths.shape != (k,):
             raise ShapeError("frame.depths", (k,), depths.shape)
-        return points, depths
+        return min(capture, t), (points, depths)
 
     def _take(
         self,
@@ -391,11 +437,16 @@ class Controller:
                 f"captured at {capture:g} s, before the encoder history ({oldest:g} s; "
                 f"settings.history = {span:g} s)"
             )
+        measurement, rejected = _usable(shown)
+        if measurement is not None:
+            camera = self.model.camera
+            fault = bounds.frame_fault(*shown, camera.width, camera.height)
+            if fault:
+                self.counts.frames_out_of_bounds += 1
+                return fault
         self._newest_capture = capture
         self._observe_latency(t - capture)
-        measurement, rejected = _usable(shown)
-        self.tracker.take(measurement, capture, q_capture, velocity)
-        return rejected
+        return self.tracker.take(measurement, capture, q_capture, velocity) or rejected
 
     def _observe_latency(self, latency: float) -> None:
         """Set the loop-gain margin for the frames' latency (without prediction)."""
@@ -464,9 +515,10 @@ class Controller:
         xi, jacobian, object_jacobian = self.features.jacobians_from_measurement(
             model.camera, measurement, camera_jacobian, rotation.T
         )
+        room = joint_room(theta, *self._arm_limits, model.n_base, model.n)
         output = self.law.step(
             xi - self.xi_d, jacobian, object_jacobian, velocity, secondary,
-            upright_row(rotation, camera_jacobian),
+            upright_row(rotation, camera_jacobian), room,
         )  # fmt: skip
         return output, (jacobian, object_jacobian)
 
@@ -483,8 +535,14 @@ class Controller:
 
 
 def _plain(value: object, size: int) -> bool:
-    """Whether ``value`` is already a float64 vector of ``size`` entries (the fast path)."""
-    return type(value) is np.ndarray and value.dtype is FLOAT64 and value.shape == (size,)
+    """Whether ``value`` is already a C-ordered, writable float64 vector of ``size`` (fast path)."""
+    return (
+        type(value) is np.ndarray
+        and value.dtype is FLOAT64
+        and value.shape == (size,)
+        and value.flags.c_contiguous
+        and value.flags.writeable
+    )
 
 
 def _usable(shown: tuple[np.ndarray, np.ndarray] | None) -> tuple[ImageMeasurement | None, str]:

@@ -21,15 +21,14 @@ the dynamic compensation's, and the MuJoCo plant's).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 from numba import njit
 
-if TYPE_CHECKING:
-    from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.validation import as_instance
 
 
 @dataclass(frozen=True)
@@ -58,6 +57,7 @@ def rigid_body_terms(robot: MobileManipulator, q: npt.ArrayLike, v: npt.ArrayLik
     Returns:
         Terms in SI units (kg, kg m^2, N, N m).
     """
+    robot = as_instance("robot", robot, MobileManipulator)
     model, data, selection = robot.model, robot.data, robot.selection
     q, v = robot.check_configuration(q), robot.check_velocity(v)
     mass = pin.crba(model, data, q)

@@ -36,6 +36,10 @@ class ChainError(UrdfError):
     """``arm_tip`` does not hang below ``arm_root`` in the arm's URDF."""
 
 
+class BaseJointsError(UrdfError):
+    """``base_joints`` names joints that do not model a base's motion."""
+
+
 class FrameNotFound(PbvsError):
     """A link or frame name does not exist in a robot description."""
 
@@ -232,18 +236,45 @@ class RunInterrupted(KeyboardInterrupt):
         log: The run so far (a :class:`pbvs_pin.sim.log.RunLog` whose ``meta["interrupted"]``
             is true), or None when nothing had been recorded yet.
         saved: Where the log was written, once it was.
+        lost: What the finished run would also have written (``"the summary"``, ...).
     """
 
-    def __init__(self, log: object | None, saved: str | None = None) -> None:
+    def __init__(
+        self, log: object | None, saved: str | None = None, lost: Iterable[str] = ()
+    ) -> None:
         """Keep the partial log.
 
         Args:
             log: The run so far, or None.
             saved: Path of the saved log, if it was saved.
+            lost: What the finished run would also have written.
         """
         self.log = log
         self.saved = saved
+        self.lost = tuple(lost)
         super().__init__("run interrupted")
+
+
+class OutputsInterrupted(KeyboardInterrupt):
+    """Ctrl-C while a finished run's outputs were being written.
+
+    A :class:`KeyboardInterrupt`, so that code which does not know it still stops.
+
+    Attributes:
+        kept: The outputs written whole, each named with its path.
+        lost: The outputs not written, or not whole, each named with its path.
+    """
+
+    def __init__(self, kept: Iterable[str], lost: Iterable[str]) -> None:
+        """Name what was kept and what was lost.
+
+        Args:
+            kept: The outputs written whole.
+            lost: The outputs not written.
+        """
+        self.kept = tuple(kept)
+        self.lost = tuple(lost)
+        super().__init__("outputs interrupted")
 
 
 class SweepIncomplete(PbvsError):
@@ -270,6 +301,20 @@ class SweepIncomplete(PbvsError):
 
 class RenderingUnavailable(PbvsError):
     """The rendered camera cannot draw: no offscreen OpenGL context, or nothing to draw."""
+
+
+class RosUnavailable(PbvsError):
+    """ROS 2's Python client cannot be imported: the ``ros`` extra is not installed."""
+
+    def __init__(self, problem: str) -> None:
+        """Say what failed and how to install the extra.
+
+        Args:
+            problem: The import error's message.
+        """
+        super().__init__(
+            f"ROS 2 is not available ({problem}); install it with pip install 'pbvs_pin[ros]'"
+        )
 
 
 class UsageError(PbvsError):

@@ -6,16 +6,18 @@ and assembles the page.
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Callable
 from contextlib import nullcontext
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from pbvs_pin.catalogue import OTHER_ROBOTS, REFERENCE_ROBOT, ROBOT_NAMES
+from pbvs_pin.claims import judge
 from pbvs_pin.exceptions import (
     GainError,
     OutputError,
+    OutputsInterrupted,
     RobotNotFound,
     RunInterrupted,
     ScenarioError,
@@ -25,6 +27,7 @@ from pbvs_pin.interrupts import (
     interrupt_point,
     interrupts_held,
     simulating,
+    stage,
     with_interrupt_point,
 )
 from pbvs_pin.report import (
@@ -48,9 +51,10 @@ from pbvs_pin.sim.log import (
 from pbvs_pin.sim.loop import Snapshot, simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import Scenario, load_scenario, parse_scenario
+from pbvs_pin.validation import as_path, read_toml
 
 PAPER_CLAIMS = {name: claim.text for name, claim in CLAIMS.items()}
-"""The paper's claim for each experiment (§5); the rules are in :data:`pbvs_pin.report.CLAIMS`."""
+"""The paper's claim for each experiment (§5); the rules are in :data:`pbvs_pin.claims.CLAIMS`."""
 
 
 def run_scenario(
@@ -66,7 +70,9 @@ def run_scenario(
     """Simulate one scenario; write ``log.npz``, ``summary.json`` and figures into ``out``.
 
     The outputs are checked writable before the simulation starts; the log and summary are
-    written atomically (whole or not at all).
+    written atomically (whole or not at all). The summary holds the run's figures
+    (:func:`pbvs_pin.sim.metrics.summarize`) and its verdict by its experiment's rule
+    (:func:`pbvs_pin.claims.judge`: ``met``, ``not_judged``, ``rule``, ``clauses``).
 
     Args:
         scenario: A shipped name, a TOML path, or a loaded scenario.
@@ -88,67 +94,108 @@ def run_scenario(
             fails (a full disk).
         RunInterrupted: On Ctrl-C during the simulation, after the run so far was saved as
             ``out/log.npz`` (``meta["interrupted"]`` true; no summary, figures or replay).
+        OutputsInterrupted: On Ctrl-C while the finished run's outputs are written, naming
+            those written whole and those not written.
         GainError: If ``eye_view`` is neither ``"strip"`` nor ``"video"`` (before simulating).
     """
-    from pbvs_pin.viz.figures import plot_run
-
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     check_writable(out, *([html] if html is not None else []))
     if eye_view not in (None, "strip", "video"):
         raise GainError(f"eye view: expected 'strip' or 'video', got {eye_view!r}", "eye_view")
     held = interrupts_held()  # Ctrl-C taken at a logged instant, never inside compiled code
+    suffix = "mp4" if eye_view == "video" else "png"
+    outputs = [
+        (f"the log {out / 'log.npz'}", "", True),
+        (f"the summary {out / 'summary.json'}", "", True),
+        (f"the figures in {out}", "figures", figures),
+        (f"the replay {html}", "replay", html is not None),
+        (f"the eye view {out / f'eye_view.{suffix}'}", "eye view", eye_view is not None),
+    ]
+    outputs = [(name, what) for name, what, wanted in outputs if wanted]
     try:
         with simulating() if held else nullcontext():
+            stage("simulation")
             observer = with_interrupt_point(observer) if held else observer
             log = simulate(scenario, progress=progress, observer=observer)
     except RunInterrupted as stop:
+        stop.lost = tuple(name for name, _ in outputs[1:])
         if stop.log is not None:
             stop.saved = str(stop.log.save(out))
         raise
-    log.save(out)
-    summary = summarize(log)
-    write_json_atomically(out / "summary.json", summary)
-    interrupt_point()  # a Ctrl-C held after the last logged instant: the run is saved
+    kept: list[str] = []
     try:
-        if figures:
+        with simulating() if held else nullcontext():  # a Ctrl-C waits for log and summary
+            stage("outputs")
+            log.save(out)
+            kept.append(outputs[0][0])
+            summary = summarize(log)
+            summary |= judge(summary)  # met, not_judged, rule, clauses
+            write_json_atomically(out / "summary.json", summary)
+            kept.append(outputs[1][0])
+        interrupt_point()  # a Ctrl-C held after the last logged instant: the run is saved
+        for name, what in outputs[2:]:
             if status is not None:
-                status("figures")
-            plot_run(log, out, footprint=(scenario.platform.length, scenario.platform.width))
-        if html is not None:
-            from pbvs_pin.viz.replay import write_run_replay
-
-            if status is not None:
-                status("replay")
-            write_run_replay(log, html, eye_view=eye_view is not None)
-        if eye_view is not None:
-            from pbvs_pin.viz.eye_view import write_eye_view
-
-            if status is not None:
-                status("eye view")
-            suffix = "mp4" if eye_view == "video" else "png"
-            write_eye_view(log, out / f"eye_view.{suffix}", eye_view)
+                status(what)
+            _write_output(what, log, scenario, out, html, eye_view)
+            kept.append(name)
     except OSError as err:
         where = err.filename or out
         raise OutputError(str(where), f"cannot write ({err.strerror or err})") from err
+    except KeyboardInterrupt as stop:
+        lost = [name for name, _ in outputs if name not in kept]
+        raise OutputsInterrupted(kept, lost) from stop
+    stage("written")
     return log, summary
+
+
+def _write_output(
+    what: str, log: RunLog, scenario: Scenario, out: Path, html: Path | None, eye: str | None
+) -> None:
+    """Write one output of a finished run: ``"figures"``, ``"replay"`` or ``"eye view"``."""
+    if what == "figures":
+        from pbvs_pin.viz.figures import plot_run
+
+        plot_run(log, out, footprint=(scenario.platform.length, scenario.platform.width))
+    elif what == "replay" and html is not None:
+        from pbvs_pin.viz.replay import write_run_replay
+
+        write_run_replay(log, html, eye_view=eye is not None)
+    elif what == "eye view" and eye is not None:
+        from pbvs_pin.viz.eye_view import write_eye_view
+
+        write_eye_view(log, out / f"eye_view.{'mp4' if eye == 'video' else 'png'}", eye)
+
+
+def robot_file(path: str) -> Scenario:
+    """The scenario of a robot file (or a whole scenario file): a TOML file with ``[robot]``.
+
+    Raises:
+        ScenarioError: A missing, unreadable or invalid file, or one without ``[robot]``.
+    """
+    if not as_path("robot", path).is_file():
+        raise ScenarioError(path, "", "no such robot or scenario file")
+    scenario = load_scenario(path)
+    if "robot" not in read_toml(Path(path), "a robot file"):
+        raise ScenarioError(path, "robot", 'no [robot] table; add one: [robot] name = "..."')
+    return scenario
 
 
 def with_robot(scenario: Scenario, robot: str) -> Scenario:
     """``scenario`` on another robot: a shipped name, a URDF file, or a robot file.
 
     A robot file is a TOML file with a ``[robot]`` table (its relative paths are read against
-    its folder); a URDF file needs a ``camera_optical_frame``.
+    its folder, and the robot's errors and warnings name it); a URDF file needs a
+    ``camera_optical_frame``.
 
     Raises:
         RobotNotFound: If ``robot`` is neither a file nor a shipped name.
         ScenarioError: If the robot file has no ``[robot]`` table or the table is invalid.
     """
-    if Path(robot).suffix.lower() == ".toml":
-        source = load_scenario(robot)  # names the file and field of any bad value
-        if "robot" not in tomllib.loads(Path(robot).read_text(encoding="utf-8")):
-            raise ScenarioError(robot, "robot", "no [robot] table (expected a robot file)")
-        table = source.to_toml()["robot"]
+    own = None  # a robot file's table, which names that file
+    if as_path("robot", robot).suffix.lower() == ".toml":
+        own = robot_file(robot).robot  # names the file and field of any bad value
+        table = own.to_toml()
     elif Path(robot).suffix.lower() == ".urdf" or Path(robot).is_file():
         table = {"urdf": str(Path(robot).resolve()), "camera_frame": "camera_optical_frame"}
     elif robot in ROBOT_NAMES:
@@ -157,7 +204,16 @@ def with_robot(scenario: Scenario, robot: str) -> Scenario:
         raise RobotNotFound(robot, ROBOT_NAMES)
     raw = scenario.to_toml()
     raw["robot"] = table
-    return parse_scenario(raw, scenario.source)
+    changed = parse_scenario(raw, scenario.source)
+    return changed if own is None else replace(changed, robot=own)
+
+
+def progress_row(done: int, jobs: int, summary: dict[str, Any]) -> str:
+    """``[3/60] pinocchio plant, compensation platform: | robot | ... |`` of a finished run."""
+    return (
+        f"[{done}/{jobs}] {summary['engine']} plant, compensation {summary['compensation']}: "
+        f"{run_row(summary)}"
+    )
 
 
 def robot_label(robot: str) -> str:
@@ -221,11 +277,12 @@ def reproduce(
     def finished(summary: dict[str, Any]) -> dict[str, Any]:
         nonlocal done
         done += 1
-        echo(f"[{done}/{jobs}] {run_row(summary)}")
+        echo(progress_row(done, jobs, summary))
         return summary
 
     _compile(engines, echo)
-    echo(f"{jobs} runs; after each, its row: {RUN_HEADER.splitlines()[0]}")
+    echo(f"{jobs} runs; after each, its plant, its compensation mode and its row: "
+         f"{RUN_HEADER.splitlines()[0]}")  # fmt: skip
     for name in CLAIMS:
         folder = out / name
         passivity_log, passivity = run_scenario(
@@ -251,7 +308,9 @@ def reproduce(
     ideal = _idealised_runs(analyses, out, echo) if idealised else None
     echo(f"writing the report {out / 'report.md'}")
     comparison = baseline_section(pairs, gain) if baseline else ""
-    findings = findings_section(reference, others, pairs, modes, analyses, ideal)
+    findings = findings_section(
+        reference, others, pairs, modes, analyses, ideal, classic=classic, plants=plants
+    )
     text = _report(reference, others, classic, modes, replays, findings)
     text += _engines_section(plants) + comparison + _analysis_section(analyses)
     text += _idealised_section(ideal) + robust
@@ -435,12 +494,12 @@ def _passivity_cells(result: dict[str, Any]) -> list[str]:
     return [
         _inequality(p9["lhs_integral_nu_input"], ">=", p9["rhs_minus_V1_0"], p9["holds"]),
         _inequality(
-            p14["lhs_integral_nu_sq"],
+            p14["lhs_integral_nu_feedback"],
             "<=",
             p14["perfect_tracking_rhs_V1_0"],
             p14["holds_with_beta_1_zero"],
         ),
-        _inequality(p27["lhs_integral_nu_sq"], "<=", p27["rhs"], p27["holds"]),
+        _inequality(p27["lhs_integral_nu_feedback"], "<=", p27["rhs"], p27["holds"]),
     ]
 
 

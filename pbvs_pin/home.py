@@ -59,7 +59,6 @@ The result is deterministic and depends on the model only: the starts are the ze
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -67,11 +66,10 @@ import pinocchio as pin
 from scipy.optimize import least_squares, minimize
 
 from pbvs_pin.exceptions import GainError, HomeNotFound
+from pbvs_pin.joint_angles import arm_difference
 from pbvs_pin.manipulability import arm_manipulability
-from pbvs_pin.validation import as_count, convert_fields
-
-if TYPE_CHECKING:
-    from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.validation import as_count, as_instance, convert_fields
 
 CAMERA_FORWARD = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 """``R_d``: optical frame in the platform frame when looking forward, image upright."""
@@ -87,6 +85,10 @@ _MAX_EVALUATIONS = 100
 
 _MAX_ITERATIONS = 60
 """Iteration cap of step 2 (a start that has not converged by then is rarely the best)."""
+
+LOCKED_WIDTH = 1e-9
+"""Width [rad or m] of the search interval of a locked joint (lower = upper limit), which
+``least_squares`` needs open; the result holds the joint exactly at its value."""
 
 _KEEP = 1e-5
 """How much [rad or m] step 2 may lose on step 1's orientation error and band violation."""
@@ -107,8 +109,9 @@ class HomeCriteria:
         max_ahead: Largest distance of the camera in front of the platform origin [m]; with
             ``max_height`` it keeps the arm from stretching far out.
         max_lateral: Largest distance of the camera from the platform's centreline [m].
-        limit_margin: Fraction of each joint's range kept from both of its limits; joints
-            without limits (continuous) search ``[-pi, pi]``.
+        limit_margin: Fraction of each joint's range kept from both of its limits. A joint
+            without limits (continuous) is searched without bounds, from starts in
+            ``[-pi, pi]``, and its home is given in ``[-pi, pi)``.
         posture_weight: Weight ``c`` of the distance from the middle of the joint ranges in
             step 2's cost, against ``-log`` of the manipulability.
         max_forward_error: Largest angle [rad] between the optical axis and the platform's x
@@ -193,7 +196,11 @@ class HomeAssessment:
 
 
 def _limits(robot: MobileManipulator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Arm joint limits and which joints have them (continuous joints: ``[-pi, pi]``)."""
+    """Arm joint limits and which joints have them (continuous joints: ``[-pi, pi]``).
+
+    A continuous joint's ``[-pi, pi]`` is the box of the starting postures and of the posture
+    weight, not a bound.
+    """
     lower, upper = robot.arm_position_limits()
     limited = np.isfinite(lower) & np.isfinite(upper)
     return np.where(limited, lower, -np.pi), np.where(limited, upper, np.pi), limited
@@ -209,12 +216,14 @@ def assess_home(robot: MobileManipulator, arm: npt.ArrayLike) -> HomeAssessment:
     Returns:
         The assessment.
     """
+    robot = as_instance("robot", robot, MobileManipulator)
     arm = np.asarray(arm, dtype=float)
     q = robot.with_arm_positions(robot.neutral(), arm)
     pose = robot.camera_pose(q)
     rotation = pose.rotation
     lower, upper, limited = _limits(robot)
-    fractions = np.minimum(arm - lower, upper - arm)[limited] / (upper - lower)[limited]
+    ranged = limited & (upper > lower)  # a locked joint (lower = upper) has no fraction
+    fractions = np.minimum(arm - lower, upper - arm)[ranged] / (upper - lower)[ranged]
     return HomeAssessment(
         forward_error=float(np.arccos(np.clip(rotation[0, 2], -1.0, 1.0))),
         roll=float(np.arctan2(-rotation[2, 0], -rotation[1, 0])),
@@ -363,6 +372,7 @@ def _stage_two(
     criteria: HomeCriteria,
     start: np.ndarray,
     bounds: tuple[np.ndarray, np.ndarray],
+    box: tuple[np.ndarray, np.ndarray],
     reached: HomeAssessment,
     shortfall: float = 0.0,
 ) -> tuple[np.ndarray, float]:
@@ -372,7 +382,10 @@ def _stage_two(
         kinematics: The robot's cached kinematics.
         criteria: The criteria.
         start: A step-1 posture. Shape (n_arm,).
-        bounds: Lower and upper bounds of the arm joints. Shapes (n_arm,).
+        bounds: Lower and upper bounds of the arm joints (infinite for a continuous joint).
+            Shapes (n_arm,).
+        box: ``bounds`` with ``[-pi, pi]`` for a continuous joint: its middle and span
+            scale the posture weight. Shapes (n_arm,).
         reached: Assessment of the best step-1 posture: its orientation error and band
             violation (plus ``_KEEP``) bound those of the result.
         shortfall: The best step-1 posture's shortfall [m] from the centre-of-mass margin
@@ -384,7 +397,8 @@ def _stage_two(
     robot = kinematics.robot
     a, b, lateral = _band(criteria, reached.band_violation(criteria) + _KEEP)
     angle_limit = reached.orientation_error + _ANGLE_SLACK
-    middle, span = 0.5 * (bounds[0] + bounds[1]), bounds[1] - bounds[0]
+    middle, span = 0.5 * (box[0] + box[1]), box[1] - box[0]
+    span = np.where(span > 0.0, span, 1.0)  # a locked joint sits at its middle: no weight
 
     def orientation(arm: np.ndarray) -> np.ndarray:
         error = pin.log3(CAMERA_FORWARD.T @ kinematics.at(arm)[0])
@@ -465,51 +479,72 @@ def compute_home(
             without it is returned (the MuJoCo plant warns that it tips).
 
     Returns:
-        ``theta_h`` [rad or m], at least ``limit_margin`` of its range from each limit.
-        Shape (n_arm,).
+        ``theta_h`` [rad or m], at least ``limit_margin`` of its range from each limit; a
+        continuous joint's in ``[-pi, pi)``. Shape (n_arm,).
 
     Raises:
         HomeNotFound: If no posture brings the optical axis within
             ``criteria.max_forward_error`` of the platform's x axis.
     """
+    robot = as_instance("robot", robot, MobileManipulator)
     criteria = criteria or HomeCriteria()
     starts, seed = as_count("starts", starts), as_count("seed", seed)
     refine = as_count("refine", refine, minimum=1)
     lower, upper, limited = _limits(robot)
     margin = np.where(limited, criteria.limit_margin * (upper - lower), 0.0)
-    bounds = (lower + margin, upper - margin)
+    box = (lower + margin, upper - margin)
+    # a continuous joint is unbounded: a bound at +-pi would stop the search at the wrap
+    bounds = (np.where(limited, box[0], -np.inf), np.where(limited, box[1], np.inf))
+    # a locked joint (lower = upper) is held within LOCKED_WIDTH of its value, and set to it
+    # at the end: least_squares needs lower < upper
+    locked = limited & (upper <= lower)
+    bounds = (bounds[0] - np.where(locked, LOCKED_WIDTH, 0.0), bounds[1])
     kinematics = _Kinematics(robot)
     rng = np.random.default_rng(seed)
-    guesses = [np.clip(np.zeros(robot.n_arm), *bounds), 0.5 * (bounds[0] + bounds[1])]
-    guesses += [rng.uniform(*bounds) for _ in range(starts)]
-    arm = _solve(kinematics, criteria, guesses, bounds, refine)
+    guesses = [np.clip(np.zeros(robot.n_arm), *box), 0.5 * (box[0] + box[1])]
+    guesses += [rng.uniform(*box) for _ in range(starts)]
+    solve = (kinematics, criteria, guesses, (bounds, box), refine)
+    arm = _solve(*solve)
     if criteria.com_margin is None:
-        return arm
+        return _finish(robot, arm, locked, lower)
     from pbvs_pin.mujoco_stability import convex_hull
     from pbvs_pin.mujoco_support import support_polygon
 
     support = support_polygon(robot) if support is None else convex_hull(support)
     if support is None or len(support) < 3:  # nothing to stand on, or no inside
-        return arm
+        return _finish(robot, arm, locked, lower)
     kinematics.balance = _Balance(robot, support, 0.0)
     if kinematics.shortfall(arm) == 0.0:  # it does not tip: kept as found
-        return arm
+        return _finish(robot, arm, locked, lower)
     kinematics.balance = _Balance(robot, support, criteria.com_margin)
     try:
-        return _solve(kinematics, criteria, guesses, bounds, refine)
+        arm = _solve(*solve)
     except HomeNotFound:  # balanced, the camera cannot look forward: the plant will warn
-        return arm
+        pass
+    return _finish(robot, arm, locked, lower)
+
+
+def _finish(
+    robot: MobileManipulator, arm: np.ndarray, locked: np.ndarray, lower: np.ndarray
+) -> np.ndarray:
+    """A solved posture with its locked joints at their value, continuous ones in [-pi, pi)."""
+    arm = np.where(locked, lower, arm)
+    return arm_difference(arm, np.zeros(robot.n_arm), robot.arm_continuous)
 
 
 def _solve(
     kinematics: _Kinematics,
     criteria: HomeCriteria,
     guesses: list[np.ndarray],
-    bounds: tuple[np.ndarray, np.ndarray],
+    limits: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
     refine: int,
 ) -> np.ndarray:
-    """Steps 1 and 2 from every guess: the best posture (see :func:`compute_home`)."""
+    """Steps 1 and 2 from every guess: the best posture (see :func:`compute_home`).
+
+    ``limits`` is ``(bounds, box)`` as :func:`_stage_two` takes them.
+    """
     robot = kinematics.robot
+    bounds, box = limits
     candidates = [_stage_one(kinematics, criteria, g, bounds) for g in guesses]
     assessed = [assess_home(robot, arm) for arm in candidates]
     shortfalls = [kinematics.shortfall(arm) for arm in candidates]
@@ -532,7 +567,7 @@ def _solve(
         and shortfalls[i] <= least + _KEEP
     ]
     refined = [
-        _stage_two(kinematics, criteria, candidates[i], bounds, best, least)
+        _stage_two(kinematics, criteria, candidates[i], bounds, box, best, least)
         for i in feasible[:refine]
     ]
     arm, value = min(refined, key=lambda pair: pair[1])

@@ -7,17 +7,139 @@ cannot catch and whose run is lost. Inside :func:`held_interrupts` and while a s
 the simulation at every logged instant (through :func:`with_interrupt_point`), raises the
 ``KeyboardInterrupt`` there, in Python code, where the loop saves the run so far. A second
 Ctrl-C, or one outside a simulation, raises at once.
+
+The ``pbvs-pin`` command passes through the :data:`STAGES`, each entered with :func:`stage`.
+While it loads its modules (this module is the package's first import), Ctrl-C prints one line
+and ends the process with status :data:`INTERRUPTED` at once (nothing has run or been
+written); :func:`loaded` hands Ctrl-C back to Python. After that the command turns any
+Ctrl-C into one line that says what was kept and what was lost (:func:`interrupted_line`).
+The environment variable :data:`INTERRUPT_AT` makes the process send itself Ctrl-C on entering
+a named stage, as a user's would arrive there (for tests, without timing races).
 """
 
 from __future__ import annotations
 
+import os
 import signal
+import sys
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
-_held = {"active": False, "pending": False, "simulating": False}
+_held = {"active": False, "pending": False, "simulating": False, "stage": "imports"}
+
+INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT), as a shell reports it."""
+
+STAGES = ("imports", "start-up", "simulation", "outputs", "written", "command", "exit")
+"""The stages of a ``pbvs-pin`` command: loading its modules, reading its inputs and
+compiling, simulating, writing a finished run's outputs, and after they are written; or
+running a command that holds no Ctrl-C (``info``, ``analyze``, ...); and its exit, once its
+status is decided (:func:`finished`: a Ctrl-C is ignored)."""
+
+INTERRUPT_AT = "PBVS_PIN_INTERRUPT_AT"
+"""Environment variable: the stage (of :data:`STAGES`) on whose entry the process sends
+itself SIGINT."""
+
+LOADING = "interrupted while loading its modules; nothing was run or written"
+"""What a Ctrl-C during the ``imports`` stage did."""
+
+_SAID = {
+    "imports": LOADING,
+    "start-up": "interrupted while starting, before any simulation; nothing was written",
+    "simulation": "interrupted during the simulation; nothing was saved",
+    "outputs": "interrupted while writing the outputs",
+    "written": "interrupted after the outputs were written; nothing was lost",
+    "command": "interrupted",
+    "exit": "interrupted as it exited; nothing was lost",
+}
+
+
+def stage(name: str) -> None:
+    """Enter a stage of :data:`STAGES`; where :data:`INTERRUPT_AT` names it, Ctrl-C arrives.
+
+    Raises:
+        KeyboardInterrupt: Where :data:`INTERRUPT_AT` names this stage and Ctrl-C is not
+            held (as a user's Ctrl-C would).
+    """
+    _held["stage"] = name
+    if os.environ.get(INTERRUPT_AT) == name:
+        signal.raise_signal(signal.SIGINT)
+
+
+def current_stage() -> str:
+    """The stage last entered with :func:`stage`."""
+    return str(_held["stage"])
+
+
+def _while_loading(signum: int, frame: object) -> None:
+    """SIGINT handler while the command loads its modules: one line, exit at once."""
+    os.write(2, f"pbvs-pin: {LOADING}\n".encode())
+    os._exit(INTERRUPTED)  # a KeyboardInterrupt here prints a traceback of some import
+
+
+def launched_as_command() -> bool:
+    """Whether this process is the ``pbvs-pin`` command (or ``python -m pbvs_pin.cli``).
+
+    Read from the process's own command line (``sys.orig_argv``), which a multiprocessing
+    worker does not share with its parent (it gets the parent's ``sys.argv``).
+    """
+    argv = getattr(sys, "orig_argv", [])
+    if "-m" in argv[:-1]:
+        return argv[argv.index("-m") + 1] == "pbvs_pin.cli"
+    names = [os.path.basename(arg).removesuffix(".exe") for arg in argv[:2]]
+    return "pbvs-pin" in names or "pbvs-pin-script.py" in names
+
+
+def loaded() -> None:
+    """The command's modules are loaded: Ctrl-C raises ``KeyboardInterrupt`` again."""
+    if signal.getsignal(signal.SIGINT) is _while_loading:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def finished() -> None:
+    """The command is done and its status decided: ignore a later Ctrl-C.
+
+    In the ``pbvs-pin`` process only, where a Ctrl-C while the interpreter shuts down could
+    only end it by the signal, without a line, and lose nothing.
+    """
+    if launched_as_command() and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        stage("exit")
+
+
+def interrupted_line(stop: BaseException, note: str = "") -> str:
+    """One line: what a Ctrl-C interrupted, what it kept and what it lost.
+
+    Args:
+        stop: The ``KeyboardInterrupt`` (a :class:`~pbvs_pin.exceptions.RunInterrupted`
+            carries the run so far, an :class:`~pbvs_pin.exceptions.OutputsInterrupted` the
+            outputs written and not written); another one is described by the stage.
+        note: What the command adds (e.g. that its report was not written).
+    """
+    from pbvs_pin.exceptions import OutputsInterrupted, RunInterrupted
+
+    if isinstance(stop, OutputsInterrupted):
+        said = f"interrupted while writing the outputs; kept: {', '.join(stop.kept)}"
+        said += f"; lost: {', '.join(stop.lost)}" if stop.lost else ""
+    elif isinstance(stop, RunInterrupted):
+        said = _run_so_far(stop)
+    else:
+        said = _SAID[current_stage()]
+    return said + (f"; {note}" if note else "")
+
+
+def _run_so_far(stop: Any) -> str:
+    """Where an interrupted simulation stopped, where its run so far is, what was not written."""
+    lost = f"; lost: {', '.join(stop.lost)}" if stop.lost else ""
+    if stop.log is None:
+        return "interrupted before the first logged step; nothing was saved" + lost
+    log = stop.log
+    stopped = f"interrupted at t = {log['t'][-1]:.2f} s of {log.meta['duration']:g} s"
+    if stop.saved is None:
+        return f"{stopped}; the run so far was not saved{lost}"
+    return f"{stopped}; the run so far is in {stop.saved} (meta interrupted = true){lost}"
 
 
 def _hold(signum: int, frame: object) -> None:
@@ -101,3 +223,8 @@ def interrupted_in_compiled_code(error: BaseException) -> bool:
             return True
         seen = seen.__cause__ or seen.__context__
     return False
+
+
+if launched_as_command() and threading.current_thread() is threading.main_thread():
+    signal.signal(signal.SIGINT, _while_loading)  # until the command's main calls loaded()
+    stage("imports")

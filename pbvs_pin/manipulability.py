@@ -9,18 +9,15 @@ rows otherwise.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 from scipy.optimize import minimize
 
 from pbvs_pin.exceptions import WrongType
-from pbvs_pin.validation import as_count, as_numbers
-
-if TYPE_CHECKING:
-    from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.joint_angles import arm_difference
+from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.validation import as_count, as_instance, as_numbers
 
 LIMIT_MARGIN = 0.05
 """Distance [rad or m] the maximising posture keeps from each joint limit."""
@@ -51,6 +48,7 @@ def arm_jacobian(robot: MobileManipulator, q: npt.ArrayLike) -> np.ndarray:
     Returns:
         Shape (3, n_arm) for an arm of three joints or fewer, else (6, n_arm).
     """
+    robot = as_instance("robot", robot, MobileManipulator)
     jacobian = pin.computeFrameJacobian(
         robot.model,
         robot.data,
@@ -69,6 +67,7 @@ def arm_manipulability(robot: MobileManipulator, q: npt.ArrayLike) -> float:
 
 def whole_body_manipulability(robot: MobileManipulator, q: npt.ArrayLike) -> float:
     """Manipulability of the camera's twist over all actuated velocities at ``q``."""
+    robot = as_instance("robot", robot, MobileManipulator)
     return manipulability(robot.camera_jacobian(q))
 
 
@@ -78,11 +77,12 @@ def max_manipulability_posture(
     """Arm posture ``theta_d`` that maximises :func:`arm_manipulability` (paper §3.3, [31]).
 
     Bounded quasi-Newton (L-BFGS-B) from the home posture and from ``starts`` seeded random
-    postures within the joint limits (``[-pi, pi]`` for a continuous joint), each kept
-    ``LIMIT_MARGIN`` inside them; the best result wins. Among postures within
-    ``TIE_TOLERANCE`` of the best (manipulability does not depend on a first yaw joint, for
-    example) the one closest to home wins. Manipulability does not depend on the base pose,
-    so the base stays at the origin.
+    postures within the joint limits (``[-pi, pi]`` for a continuous joint, which is not
+    bounded), each kept ``LIMIT_MARGIN`` inside them; the best result wins. Among postures
+    within ``TIE_TOLERANCE`` of the best (manipulability does not depend on a first yaw joint,
+    for example) the one closest to home wins, a continuous joint's distance taken the
+    shortest way round and its angle given in ``[-pi, pi)``. Manipulability does not depend
+    on the base pose, so the base stays at the origin.
 
     Args:
         robot: The robot.
@@ -92,20 +92,28 @@ def max_manipulability_posture(
     Returns:
         ``theta_d`` [rad or m]. Shape (n_arm,).
     """
+    robot = as_instance("robot", robot, MobileManipulator)
     starts, seed = as_count("starts", starts), as_count("seed", seed)
     lower, upper = robot.arm_position_limits()
-    lower = np.where(np.isfinite(lower), lower, -np.pi) + LIMIT_MARGIN
-    upper = np.where(np.isfinite(upper), upper, np.pi) - LIMIT_MARGIN
+    limited = np.isfinite(lower) & np.isfinite(upper)
+    lower = np.where(limited, lower, -np.pi) + LIMIT_MARGIN
+    upper = np.where(limited, upper, np.pi) - LIMIT_MARGIN
     base_q = robot.neutral()
+    continuous = robot.arm_continuous
 
     def cost(arm: np.ndarray) -> float:
         return -arm_manipulability(robot, robot.with_arm_positions(base_q, arm))
 
     rng = np.random.default_rng(seed)
-    guesses = [np.clip(robot.home_arm, lower, upper)]
+    guesses = [np.where(limited, np.clip(robot.home_arm, lower, upper), robot.home_arm)]
     guesses += [rng.uniform(lower, upper) for _ in range(starts)]
-    bounds = list(zip(lower, upper, strict=True))
+    bounds = [(low, high) if bounded else (None, None)
+              for low, high, bounded in zip(lower, upper, limited, strict=True)]  # fmt: skip
     results = [minimize(cost, guess, method="L-BFGS-B", bounds=bounds) for guess in guesses]
     best = min(result.fun for result in results)
-    ties = [r.x for r in results if r.fun <= best + TIE_TOLERANCE * abs(best)]
-    return np.asarray(min(ties, key=lambda arm: np.linalg.norm(arm - guesses[0])))
+    ties = [
+        arm_difference(r.x, np.zeros_like(r.x), continuous)
+        for r in results if r.fun <= best + TIE_TOLERANCE * abs(best)
+    ]  # fmt: skip
+    home = guesses[0]
+    return min(ties, key=lambda arm: np.linalg.norm(arm_difference(arm, home, continuous)))

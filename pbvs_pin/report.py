@@ -2,7 +2,9 @@
 
 Every figure comes from a run's ``summary.json`` (:func:`pbvs_pin.sim.metrics.summarize`) or
 its analysis (:func:`pbvs_pin.analysis.analyze_log`); nothing is typed in by hand. A paper's
-claim is marked met only when the figures named by its rule (:data:`CLAIMS`) meet it. Every
+claim is marked met only when the figures named by its rule (:data:`pbvs_pin.claims.CLAIMS`)
+meet it; a run that does not says which clauses failed, with their figures, and a run too
+short for the rule's window is marked not judged (:func:`pbvs_pin.claims.judge`). Every
 run's row carries the flags of :mod:`pbvs_pin.sim.metrics` (target lost, joints past limits,
 collision, sustained oscillation) and its saturation fractions, so no row hides a failure.
 
@@ -18,94 +20,13 @@ from __future__ import annotations
 import json
 import math
 import sys
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from pbvs_pin.claims import CLAIMS, judge, verdict_parts, verdict_text
 from pbvs_pin.exceptions import PbvsError
 from pbvs_pin.sim.metrics import OSCILLATION_CUTOFF_HZ, OSCILLATION_FLAG_PX
-
-
-@dataclass(frozen=True)
-class Claim:
-    """One of the paper's claims (§5) and the rule that decides whether a run meets it.
-
-    Attributes:
-        text: The paper's claim.
-        rule: The rule, in words, as the report prints it.
-        check: The rule on a run's summary.
-    """
-
-    text: str
-    rule: str
-    check: Callable[[dict[str, Any]], bool]
-
-
-SUSTAINED_OSCILLATION_PX = 3.0
-"""Largest RMS of the error's part above the oscillation cut-off, over any 5 s window [px]."""
-
-JOINT_LIMIT_TOLERANCE = 0.01
-"""Largest excursion of an arm joint past its position limit [rad or m]."""
-
-SOUND_RULE = (
-    "target never lost; no joint more than "
-    f"{JOINT_LIMIT_TOLERANCE:g} past its limits; no sustained oscillation (the error's part "
-    f"above {OSCILLATION_CUTOFF_HZ:g} Hz < {SUSTAINED_OSCILLATION_PX:g} px RMS over every 5 s "
-    "window)"
-)
-"""What every claim requires besides its own figures: a run that holds only through an
-artefact (a lost target, a joint past its stop, an oscillation inside a loose bound) is not
-a pass."""
-
-
-def _sound(s: dict[str, Any]) -> bool:
-    """:data:`SOUND_RULE` on a run's summary."""
-    violation = s["joint_limit_violation"] or 0.0
-    return (
-        s["target_lost_samples"] == 0
-        and violation <= JOINT_LIMIT_TOLERANCE
-        and s["oscillation_rms_px"] < SUSTAINED_OSCILLATION_PX
-    )
-
-
-def _bounded(s: dict[str, Any]) -> bool:
-    """Max |error| after the transient below half the image height; clearance > 0."""
-    clearance = s["min_clearance_m"]
-    return (
-        s["max_abs_error_after_transient_px"] < s["image_height_px"] / 2
-        and (clearance is None or clearance > 0)
-    )
-
-
-CLAIMS = {
-    "experiment1": Claim(
-        "errors ultimately bounded, final max |error| < 8 px",
-        f"max abs(e) over the last 5 s < 8 px; {SOUND_RULE}",
-        lambda s: _sound(s) and s["max_abs_error_final_window_px"] < 8.0,
-    ),
-    "experiment2": Claim(
-        "errors bounded while avoiding the obstacle; arm returns to max manipulability",
-        "max abs(e) after 2 s < half the image height; min clearance > 0; arm within 0.1 rad of "
-        f"theta_d over the last 5 s; last 5 s < 8 px; {SOUND_RULE}",
-        lambda s: _sound(s)
-        and _bounded(s)
-        and s["posture_error_final_window_rad"] < 0.1
-        and s["max_abs_error_final_window_px"] < 8.0,
-    ),
-    "experiment3": Claim(
-        "errors bounded with a 20% kinematic model error (degraded but acceptable)",
-        "max abs(e) after 2 s < half the image height; min clearance > 0; last 5 s < 12 px "
-        f"(1.5 times Exp. 1's 8 px); {SOUND_RULE}",
-        lambda s: _sound(s) and _bounded(s) and s["max_abs_error_final_window_px"] < 12.0,
-    ),
-    "experiment4": Claim(
-        "errors converge to zero (perfect knowledge)",
-        f"max abs(e) over the last 5 s < 0.5 px; {SOUND_RULE}",
-        lambda s: _sound(s) and s["max_abs_error_final_window_px"] < 0.5,
-    ),
-}
-"""The paper's claim for each experiment (§5) and its rule (the design notes, §4)."""
 
 FLAG_RULES = (
     "Flags: *lost N from t s*: the target was out of view for N log samples, first at t; "
@@ -113,7 +34,8 @@ FLAG_RULES = (
     f"the platform's clearance went below 0; *oscillation a px*: the feature error's part "
     f"above {OSCILLATION_CUTOFF_HZ:g} Hz (4th-order zero-phase Butterworth high-pass after 2 s), "
     f"RMS over its worst 5 s window, is above {OSCILLATION_FLAG_PX:g} px. *u sat*: fraction of "
-    "samples where the controller scaled u down to the velocity limits; *v_ref lim*: fraction "
+    "samples where the velocity limits cut the command (u scaled down, or v_ref clipped); "
+    "*v_ref lim*: fraction "
     "where a component of the compensator's v_ref sits at its limit."
 )
 """How each flag of a row is defined."""
@@ -133,22 +55,22 @@ RENDERED_COLUMNS = (
 """Columns of :func:`rendered_results`."""
 
 
-def claim_met(summary: dict[str, Any]) -> bool | None:
-    """Whether a run meets its experiment's claim; None for a scenario without one."""
-    claim = CLAIMS.get(summary["scenario"])
-    return None if claim is None else bool(claim.check(summary))
-
-
 def verdict(summary: dict[str, Any]) -> str:
-    """``met (experiment1's rule)``, ``NOT met (...)``, or ``-`` for a scenario without a claim.
+    """``met (experiment1's rule)``, ``NOT met (...)``, ``not judged (...)``, or ``-``.
 
     The verdict names the rule it was judged by: a run on another robot, on another plant or
-    with another law is judged by its experiment's rule (:data:`CLAIMS`).
+    with another law is judged by its experiment's rule (:data:`pbvs_pin.claims.CLAIMS`). A
+    run that fails
+    it names the failed clauses with their figures (``NOT met (experiment1's rule: last 5 s:
+    9.5 px >= 8 px)``); a run too short to judge says why (:func:`pbvs_pin.claims.judge`);
+    a scenario without a claim gives ``-``.
     """
-    met = claim_met(summary)
-    if met is None:
+    judgement = judge(summary)
+    if judgement["rule"] is None:
         return "-"
-    return f"{'met' if met else 'NOT met'} ({summary['scenario']}'s rule)"
+    head, detail = verdict_parts(judgement)
+    rule = f"{summary['scenario']}'s rule"
+    return f"{head} ({rule}: {detail})" if detail else f"{head} ({rule})"
 
 
 def flags(summary: dict[str, Any]) -> list[str]:
@@ -297,7 +219,7 @@ def readme_results(reference: list[dict[str, Any]]) -> str:
         clearance = s["min_clearance_m"]
         lines.append(
             f"| {s['scenario']} | {CLAIMS[s['scenario']].rule} | "
-            f"{'met' if claim_met(s) else 'NOT met'} | "
+            f"{verdict_text(judge(s))} | "
             f"{s['max_abs_error_final_window_px']:.2f} | "
             f"{s['max_abs_error_after_transient_px']:.1f} | "
             f"{'-' if clearance is None else f'{clearance:.3f}'} | "

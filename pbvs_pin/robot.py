@@ -18,15 +18,14 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
-from numba import njit
 
 from pbvs_pin import frames
+from pbvs_pin.arm_chain import keep_chain, lock_outside_chain
 from pbvs_pin.assembly import (
     UrdfSource,
     add_drive_footprint,
     add_fixed_frame,
     find_drive_axle,
-    keep_chain,
     load_urdf,
     mount_arm,
     to_xml,
@@ -34,7 +33,9 @@ from pbvs_pin.assembly import (
 )
 from pbvs_pin.base import BaseAdapter, FixedBase, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.exceptions import FrameNotFound, GainError, NoMovableJoint, UrdfError
+from pbvs_pin.exceptions import FrameNotFound, GainError, NoMovableJoint, UrdfError, WrongType
+from pbvs_pin.joint_angles import arm_angles
+from pbvs_pin.platform_frame import PlatformFrame, fix_base_joints, turn_platform
 from pbvs_pin.urdf_checks import check_meshes
 from pbvs_pin.validation import as_array, as_number, as_path, as_se3
 
@@ -93,25 +94,6 @@ def _one_line(err: Exception) -> str:
     return " ".join(str(err).split())
 
 
-@njit(cache=True, inline="always")
-def arm_angles(q: np.ndarray, idx_q: np.ndarray, continuous: np.ndarray) -> np.ndarray:
-    """Arm joint positions from a configuration; continuous joints (cos, sin) give an angle.
-
-    Args:
-        q: Configuration. Shape (nq,).
-        idx_q: Index of each arm joint in ``q``. Shape (n_arm,).
-        continuous: Whether each joint is stored as (cos, sin). Shape (n_arm,).
-
-    Returns:
-        Shape (n_arm,) [rad or m].
-    """
-    angles = np.empty(idx_q.shape[0])
-    for i in range(idx_q.shape[0]):
-        j = idx_q[i]
-        angles[i] = np.arctan2(q[j + 1], q[j]) if continuous[i] else q[j]
-    return angles
-
-
 class MobileManipulator:
     """A mobile manipulator with an eye-in-hand camera, as one Pinocchio model.
 
@@ -148,10 +130,13 @@ class MobileManipulator:
         camera_frame: str,
         camera: CameraIntrinsics,
         source: str,
+        locked: tuple[str, ...] = (),
     ) -> None:
         """Wrap a Pinocchio model whose root joint matches ``base``.
 
-        Prefer :meth:`from_urdf`, :meth:`assemble` or :func:`pbvs_pin.load_robot`.
+        Prefer :meth:`from_urdf`, :meth:`assemble` or :func:`pbvs_pin.load_robot`. ``locked``
+        names joints held at neutral even where they carry the camera (outside ``arm_root`` to
+        ``arm_tip``).
 
         Raises:
             FrameNotFound: If ``camera_frame`` is not a frame of ``model``.
@@ -163,7 +148,7 @@ class MobileManipulator:
         self.base = base
         self.camera = camera
         self.camera_frame = camera_frame
-        self.model, self.visual_model = _lock_off_chain(model, visual_model, camera_frame)
+        self.model, self.visual_model = _lock_off_chain(model, visual_model, camera_frame, locked)
         self.data = self.model.createData()
         self.camera_frame_id = self.model.getFrameId(camera_frame)
         n_root = base.selection().shape[0]
@@ -203,6 +188,9 @@ class MobileManipulator:
         camera: CameraIntrinsics | None = None,
         repair_inertia: bool = False,
         geometry_density: float | None = None,
+        platform_frame: PlatformFrame | None = None,
+        arm_root: str | None = None,
+        arm_tip: str | None = None,
     ) -> MobileManipulator:
         """Load one URDF that holds platform, arm and camera frame.
 
@@ -218,15 +206,27 @@ class MobileManipulator:
             geometry_density: Give each link without ``<inertial>`` the inertia of its
                 geometry at this density [kg/m^3] (:mod:`pbvs_pin.link_inertia`); the links
                 are in :attr:`filled_inertias`. None: leave them massless.
+            platform_frame: The joints that model the base and the forward axis
+                (:mod:`pbvs_pin.platform_frame`); base joints recognised, x forward if None.
+            arm_root: With or without ``arm_tip``: the arm is the URDF's chain from this link
+                (the URDF's root link when None) down to ``arm_tip``; every other movable joint
+                is locked at neutral (:func:`~pbvs_pin.assembly.lock_outside_chain`).
+            arm_tip: Last link of the arm; ``camera_frame`` when None. Neither given: every
+                joint between the root and the camera frame moves.
 
         Raises:
             UrdfError: Malformed file, or a platform without a usable drive axle.
-            FrameNotFound: If ``camera_frame`` does not exist.
+            ChainError: If ``arm_tip`` does not hang below ``arm_root``, or the camera frame
+                below ``arm_tip``.
+            FrameNotFound: If ``camera_frame``, ``arm_root`` or ``arm_tip`` does not exist.
             NoMovableJoint: If no joint moves the camera.
         """
         source = load_urdf(path, repair_inertia, geometry_density)
         source.require_link(camera_frame)
-        return cls._from_source(source, camera_frame, base, camera)
+        fix_base_joints(source, (platform_frame or PlatformFrame()).base_joints)
+        if arm_root is not None or arm_tip is not None:
+            lock_outside_chain(source, arm_root, arm_tip or camera_frame, camera_frame)
+        return cls._from_source(source, camera_frame, base, camera, platform_frame)
 
     @classmethod
     def assemble(
@@ -242,6 +242,7 @@ class MobileManipulator:
         geometry_density: float | None = None,
         arm_root: str | None = None,
         arm_tip: str | None = None,
+        platform_frame: PlatformFrame | None = None,
     ) -> MobileManipulator:
         """Mount an arm on a platform and attach the camera optical frame.
 
@@ -262,22 +263,30 @@ class MobileManipulator:
             geometry_density: See :meth:`from_urdf`; applies to the base and the arm.
             arm_root: With ``arm_tip``, mount only the arm's chain from this link (placed at
                 ``mount``) down to ``arm_tip``, dropping the rest of the arm's URDF (a second
-                arm, a pedestal); the arm URDF's root link when None.
-            arm_tip: Last link of the chain mounted; ``camera_link`` when None. Neither
-                given: the whole arm URDF is mounted.
+                arm, a pedestal); the arm URDF's root link when None. Without ``arm`` (a
+                ``base`` that carries its arm): the arm is the base URDF's chain from this link
+                down to ``arm_tip``, every other movable joint locked at neutral
+                (:func:`~pbvs_pin.assembly.lock_outside_chain`).
+            arm_tip: Last link of the chain; ``camera_link`` when None. Neither given: the
+                whole arm URDF is mounted (without ``arm``: every joint between the root and
+                the camera moves).
+            platform_frame: See :meth:`from_urdf`; applies to the base (``mount`` stays in
+                its root link).
 
         Raises:
-            UrdfError: Malformed file, a platform without a usable drive axle, or an
-                ``arm_tip`` not below ``arm_root``, or ``arm_root``/``arm_tip`` without an arm.
+            UrdfError: Malformed file, a platform without a usable drive axle.
+            ChainError: If ``arm_tip`` does not hang below ``arm_root`` (without ``arm``: or
+                ``camera_link`` below ``arm_tip``).
             FrameNotFound: If ``camera_link``, ``arm_root`` or ``arm_tip`` does not exist.
             NoMovableJoint: If no joint moves the camera.
         """
         mount_pose = as_se3("mount", mount)
         optical_pose = as_se3("camera_pose", camera_pose)
         platform = load_urdf(base, repair_inertia, geometry_density)
+        fix_base_joints(platform, (platform_frame or PlatformFrame()).base_joints)
         chain = arm_root is not None or arm_tip is not None
-        if chain and arm is None:
-            raise UrdfError(platform.label, "arm_root and arm_tip need an arm to cut the chain of")
+        if chain and arm is None:  # the base carries its arm: the chain moves, the rest is locked
+            lock_outside_chain(platform, arm_root, arm_tip or camera_link, camera_link)
         if arm is not None:
             arm_source = load_urdf(arm, repair_inertia, geometry_density)
             arm_source.require_link(camera_link)
@@ -294,7 +303,7 @@ class MobileManipulator:
                 f"camera_link is already the optical frame {frames.CAMERA_OPTICAL!r}: expected "
                 "an identity camera_pose",
             )
-        robot = cls._from_source(platform, frames.CAMERA_OPTICAL, base_kind, camera)
+        robot = cls._from_source(platform, frames.CAMERA_OPTICAL, base_kind, camera, platform_frame)
         robot.mounted_links = tuple(names.values()) if arm is not None else ()
         return robot
 
@@ -305,7 +314,9 @@ class MobileManipulator:
         camera_frame: str,
         base: str | BaseAdapter,
         camera: CameraIntrinsics | None,
+        platform_frame: PlatformFrame | None = None,
     ) -> MobileManipulator:
+        turn_platform(source, (platform_frame or PlatformFrame()).forward_axis)
         description = copy.deepcopy(source)  # as built, before the base adapter edits it
         adapter = _base_adapter(base, source)
         xml = to_xml(source)
@@ -313,8 +324,9 @@ class MobileManipulator:
         check_meshes(source.robot, source.label)
         visuals = _build_visuals(model, xml, source.label, source.package_dirs)
         robot = cls(
-            model, visuals, adapter, camera_frame, camera or CameraIntrinsics(), source.label
-        )
+            model, visuals, adapter, camera_frame, camera or CameraIntrinsics(), source.label,
+            source.locked,
+        )  # fmt: skip
         robot._description = description
         robot.urdf_xml = xml
         robot.repaired_inertias = source.repaired_inertias
@@ -327,7 +339,8 @@ class MobileManipulator:
         :meth:`from_urdf` on the written file, with this robot's ``camera_frame`` and base,
         gives the same model: the differential drive is found again from the wheel joints,
         which the file keeps. Mesh paths are absolute. An explicit base adapter object is not
-        written; pass it to :meth:`from_urdf` again.
+        written, nor are the joints locked off an ``arm_root``/``arm_tip`` chain of a URDF
+        carrying its arm; pass them to :meth:`from_urdf` again.
 
         Args:
             path: File to write (``.urdf``).
@@ -527,7 +540,9 @@ class MobileManipulator:
         return pin.SE3(self.data.oMf[frame_id])
 
     def frame_id(self, frame: str) -> int:
-        """Index of a named frame, or FrameNotFound listing the valid names."""
+        """Index of a named frame, or FrameNotFound listing the valid names (WrongType: no text)."""
+        if not isinstance(frame, str):
+            raise WrongType("frame", "a frame name (text)", frame)
         if not self.model.existFrame(frame):
             raise FrameNotFound(frame, [f.name for f in self.model.frames], self.source)
         return self.model.getFrameId(frame)
@@ -573,12 +588,12 @@ class MobileManipulator:
 
 
 def _lock_off_chain(
-    model: pin.Model, visual_model: pin.GeometryModel, camera_frame: str
+    model: pin.Model, visual_model: pin.GeometryModel, camera_frame: str, names: tuple[str, ...]
 ) -> tuple[pin.Model, pin.GeometryModel]:
-    """Lock, at neutral, every joint that is not between the root and the camera frame."""
+    """Lock, at neutral, every joint not between the root and the camera frame, and ``names``."""
     parent = model.frames[model.getFrameId(camera_frame)].parentJoint
     chain = set(model.supports[parent])
-    locked = [j for j in range(1, model.njoints) if j not in chain]
+    locked = [j for j in range(1, model.njoints) if j not in chain or model.names[j] in names]
     if not locked:
         return model, visual_model
     return pin.buildReducedModel(model, visual_model, locked, pin.neutral(model))

@@ -10,14 +10,18 @@ file of its own) gives exactly one form:
   platform (:meth:`MobileManipulator.assemble`); ``arm`` and ``mount`` are absent when the
   base carries its arm.
 
-``arm_root`` and ``arm_tip`` (assembly form with an arm) mount only the arm URDF's chain
-between the two links. ``repair_inertia`` (URDF and assembly forms) repairs inertias that
-break the triangle inequality (:func:`pbvs_pin.urdf_checks.balance_inertia`).
+``arm_root`` and ``arm_tip`` (URDF and assembly forms) make the arm the chain between the two
+links: with ``arm``, only that chain of the arm's URDF is mounted; without (a URDF or base that
+carries its arm), every movable joint off the chain is locked at neutral. ``repair_inertia``
+(URDF and assembly forms) repairs inertias that break the triangle inequality
+(:func:`pbvs_pin.urdf_checks.balance_inertia`).
 ``home`` (the arm's home posture) applies to every form. The drive parameters
 ``wheel_radius``, ``track`` and ``wheel_speed_limit`` (all three or none, URDF and assembly
 forms) replace the drive axle found in the platform's URDF by a
 :class:`~pbvs_pin.base.DifferentialDrive` with those values, whose planar root joint then sits
-at the platform's root link (:func:`drive_of`). Every error names the file and the dotted
+at the platform's root link (:func:`drive_of`). ``base_joints`` and ``forward_axis`` (URDF and
+assembly forms) say which joints model the platform's motion and which way it drives
+(:class:`~pbvs_pin.platform_frame.PlatformFrame`). Every error names the file and the dotted
 field at fault, and what to add.
 """
 
@@ -32,6 +36,7 @@ from pbvs_pin.base import BaseAdapter, DifferentialDrive, Omnidirectional
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import build_robot
 from pbvs_pin.exceptions import (
+    BaseJointsError,
     ChainError,
     DriveAxleNotFound,
     FrameNotFound,
@@ -45,6 +50,7 @@ from pbvs_pin.exceptions import (
 )
 from pbvs_pin.home import compute_home
 from pbvs_pin.placement import warn_placement
+from pbvs_pin.platform_frame import PlatformFrame
 from pbvs_pin.robot import MobileManipulator
 
 
@@ -69,6 +75,8 @@ class RobotTable(Protocol):
     drive: str
     speed_limit: float | None
     yaw_rate_limit: float | None
+    base_joints: tuple[str, ...] | None
+    forward_axis: str
     arm_root: str
     arm_tip: str
     repair_inertia: bool
@@ -93,11 +101,18 @@ DRIVE_KEYS = ("wheel_radius", "track", "wheel_speed_limit")
 OMNIDIRECTIONAL_KEYS = ("speed_limit", "yaw_rate_limit")
 """The limits of an omnidirectional drive (``drive = "omnidirectional"`` only)."""
 
+DRIVE_WAYS_OUT = (
+    "; or give the drive in [robot]: add wheel_radius, track and wheel_speed_limit (a drive "
+    "axle for the Pinocchio plant only: the MuJoCo plant rolls the URDF's own wheels), or "
+    'set drive = "omnidirectional" for a holonomic base (mecanum, omni or swerve wheels)'
+)
+"""What the error of a platform without a drive axle adds: every way out of a ``[robot]``."""
+
 DEFAULT_OMNIDIRECTIONAL_LIMIT = 1.0
 """An omnidirectional drive's speed [m/s] and yaw-rate [rad/s] limit when not given."""
 
 CHAIN_KEYS = ("arm_root", "arm_tip")
-"""The keys that cut a chain out of the arm's URDF (assembly form with an arm only)."""
+"""The keys that make the arm a chain of a URDF (URDF and assembly forms)."""
 
 REQUIRED: dict[str, tuple[tuple[str, tuple[str, ...]], ...]] = {
     "name": (),
@@ -149,14 +164,17 @@ def check_forms(spec: RobotTable) -> None:
     for name, needed in REQUIRED[forms[0]]:
         if not given(spec, name) and all(given(spec, n) for n in needed):
             raise GainError(f"missing; add {name} = {HINTS[name]}", name)
-    for name in CHAIN_KEYS:
-        if given(spec, name) and not given(spec, "arm"):
-            raise GainError("needs an arm: the chain is cut out of the arm's URDF", name)
+    chain = [name for name in CHAIN_KEYS if given(spec, name)]
+    if forms[0] == "name" and chain:
+        raise GainError("a shipped robot's arm is known: remove it", chain[0])
     drive = [given(spec, name) for name in DRIVE_KEYS]
     if forms[0] == "name" and spec.repair_inertia:
         raise GainError("a shipped robot's inertias are valid: remove it", "repair_inertia")
     if forms[0] == "name" and spec.geometry_density is not None:
         raise GainError("a shipped robot has its inertias: remove it", "geometry_density")
+    if forms[0] == "name" and (spec.base_joints is not None or spec.forward_axis != "x"):
+        name = "base_joints" if spec.base_joints is not None else "forward_axis"
+        raise GainError("a shipped robot's platform is known: remove it", name)
     if forms[0] == "name" and any(drive):
         name = DRIVE_KEYS[drive.index(True)]
         raise GainError("a shipped robot's drive is known: remove the drive keys", name)
@@ -235,7 +253,7 @@ def build_robot_from(
         field = _field_at_fault(spec, err)
         problem = str(err)
         if isinstance(err, DriveAxleNotFound):
-            problem += "; or give the drive: add wheel_radius, track and wheel_speed_limit"
+            problem += DRIVE_WAYS_OUT
         raise ScenarioError(spec.source, f"robot.{field}", problem) from err
     if spec.home is not None:
         robot.home_arm = arm_posture(spec.source, "robot.home", robot, spec.home)
@@ -256,7 +274,8 @@ def _build(spec: RobotTable, camera: CameraIntrinsics | None) -> MobileManipulat
     if spec.form == "urdf":
         return MobileManipulator.from_urdf(
             spec.urdf, spec.camera_frame, drive_of(spec), camera, spec.repair_inertia,
-            spec.geometry_density,
+            spec.geometry_density, PlatformFrame(spec.base_joints, spec.forward_axis),
+            spec.arm_root or None, spec.arm_tip or None,
         )  # fmt: skip
     return MobileManipulator.assemble(
         spec.base,
@@ -270,6 +289,7 @@ def _build(spec: RobotTable, camera: CameraIntrinsics | None) -> MobileManipulat
         geometry_density=spec.geometry_density,
         arm_root=spec.arm_root or None,
         arm_tip=spec.arm_tip or None,
+        platform_frame=PlatformFrame(spec.base_joints, spec.forward_axis),
     )
 
 
@@ -280,6 +300,8 @@ def _field_at_fault(spec: RobotTable, err: PbvsError) -> str:
         return "name"
     if isinstance(err, DriveAxleNotFound):
         return "urdf" if form == "urdf" else "base"
+    if isinstance(err, BaseJointsError):
+        return "base_joints"
     chain = {getattr(spec, key): key for key in CHAIN_KEYS if getattr(spec, key)}
     if isinstance(err, FrameNotFound) and err.name in chain:
         return chain[err.name]

@@ -32,12 +32,12 @@ def map_path(name_or_path: str | Path) -> Path | None:
     None when it names no readable TOML file with a ``[map]`` table (an ordinary sweep spec,
     whose errors :func:`pbvs_pin.sweep.spec.load_sweep` then reports).
     """
-    shipped = sweep_dir() / f"{name_or_path}.toml"
-    path = shipped if shipped.is_file() else Path(name_or_path)
     try:
+        shipped = sweep_dir() / f"{name_or_path}.toml"
+        path = shipped if shipped.is_file() else Path(name_or_path)
         with open(path, "rb") as file:
             return path if "map" in tomllib.load(file) else None
-    except (OSError, tomllib.TOMLDecodeError):
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):  # a name too long, too
         return None
 
 

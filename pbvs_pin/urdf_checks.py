@@ -162,6 +162,10 @@ def check_physics(robot: yourdfpy.Robot, label: str, repair_inertia: bool = Fals
         where = f"joint {joint.name!r}"
         if joint.origin is not None and not np.all(np.isfinite(joint.origin)):
             raise UrdfError(label, f"{where}: <origin> is not finite; expected numbers")
+        axis = joint.axis
+        if axis is not None and (np.shape(axis) != (3,) or not np.all(np.isfinite(axis))):
+            shown = " ".join(f"{value:g}" for value in np.ravel(axis))
+            raise UrdfError(label, f'{where}: <axis xyz="{shown}">: expected three finite numbers')
         limit = joint.limit
         if limit is None or joint.type not in MOVABLE:
             continue

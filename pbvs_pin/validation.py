@@ -11,13 +11,15 @@ ragged list) raises :class:`~pbvs_pin.exceptions.WrongType`, a wrong shape
 from __future__ import annotations
 
 import os
+import tomllib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from pbvs_pin.exceptions import GainError, NonFiniteValue, ShapeError, WrongType
+from pbvs_pin.exceptions import GainError, NonFiniteValue, ScenarioError, ShapeError, WrongType
 
 
 def as_array(name: str, value: npt.ArrayLike, shape: tuple[int, ...]) -> np.ndarray:
@@ -146,15 +148,55 @@ def as_count(name: str, value: object, minimum: int = 0) -> int:
     return int(number)
 
 
+def as_instance(name: str, value: object, kind: type) -> Any:
+    """``value`` itself, if it is a ``kind`` (e.g. a ``MobileManipulator``).
+
+    Raises:
+        WrongType: If it is not (a dict, a name or a list where an object is expected).
+    """
+    if not isinstance(value, kind):
+        raise WrongType(name, f"a {kind.__name__}", value)
+    return value
+
+
+NAME_MAX = 255
+"""Longest file or folder name [bytes] of the usual file systems (ext4, APFS, NTFS)."""
+
+
 def as_path(name: str, value: object) -> Path:
     """Convert ``value`` (a ``str`` or ``os.PathLike``) to a :class:`~pathlib.Path`.
 
     Raises:
-        WrongType: If ``value`` is not a path, or is empty.
+        WrongType: If ``value`` is not a path, is empty, or has a name of more than
+            :data:`NAME_MAX` bytes (which the system refuses with "File name too long").
     """
     if not isinstance(value, str | os.PathLike) or str(value) == "":
         raise WrongType(name, "a file or folder path (str or pathlib.Path)", value)
-    return Path(value)
+    path = Path(value)
+    if any(len(os.fsencode(part)) > NAME_MAX for part in path.parts):
+        raise WrongType(name, f"a path whose names have at most {NAME_MAX} bytes", value)
+    return path
+
+
+def read_toml(path: Path, kind: str) -> dict:
+    """Read a TOML file the user named.
+
+    Args:
+        path: The file.
+        kind: What it should be, for the message (e.g. ``"a sweep spec"``).
+
+    Raises:
+        ScenarioError: Naming the file, if it cannot be read, is not UTF-8 text or not TOML.
+    """
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as err:
+        problem = f"not UTF-8 text (expected {kind}, a TOML file): {err}"
+    except OSError as err:
+        problem = f"cannot be read (expected {kind}, a TOML file): {err.strerror}"
+    except tomllib.TOMLDecodeError as err:
+        problem = f"not valid TOML (expected {kind}): {err}"
+    raise ScenarioError(str(path), "", problem)
 
 
 def positive_number(name: str, value: object) -> float:

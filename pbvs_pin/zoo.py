@@ -9,7 +9,10 @@ the MuJoCo plants with the shipped gains, in a process pool, and keeps each run'
 package, degrees of freedom and joint types, and per experiment and plant the max error over
 the last 5 s, the target-lost samples, the largest excursion past a joint limit, the
 oscillation RMS, the share of samples where the loop-gain net cut the gains, and whether the
-run meets the paper's claim by the report's rules (:data:`pbvs_pin.report.CLAIMS`).
+run meets the paper's claim by its experiment's rule (:data:`pbvs_pin.claims.CLAIMS`): ``yes``,
+``**no**`` with the failed clauses' names, or ``not judged`` for a run too short for the rule
+(``--duration`` under 7 s). Each run's verdict is printed as its robot finishes
+(:func:`progress_line`).
 
 Run it with ``pbvs-pin zoo robots --out zoo_results --page docs/zoo.rst``.
 """
@@ -21,7 +24,6 @@ import json
 import site
 import sysconfig
 import time
-import tomllib
 import warnings
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -33,11 +35,13 @@ from typing import Any
 import numpy as np
 
 from pbvs_pin.assembly import PACKAGE_PREFIX
+from pbvs_pin.claims import failed, judge, verdict_text
 from pbvs_pin.exceptions import PbvsError, PbvsWarning
 from pbvs_pin.outputs import Output
-from pbvs_pin.report import claim_met, rst_row
+from pbvs_pin.report import rst_row
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.shipped import urdf_dir
+from pbvs_pin.validation import read_toml
 
 EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
 """The paper's experiments, as shipped scenarios."""
@@ -103,16 +107,14 @@ def load_zoo(folder: str | Path) -> list[ZooRobot]:
     """Every ``*.toml`` robot file of ``folder``, sorted by name.
 
     Raises:
-        ScenarioError: Naming a file without a ``[robot]`` table or that is not valid TOML.
+        ScenarioError: Naming a file without a ``[robot]`` table, or that is not UTF-8 text
+            or not valid TOML.
     """
     from pbvs_pin.exceptions import ScenarioError
 
     robots = []
     for path in sorted(Path(folder).glob("*.toml")):
-        try:
-            table = tomllib.loads(path.read_text())
-        except tomllib.TOMLDecodeError as err:
-            raise ScenarioError(str(path), "", f"not valid TOML ({err})") from err
+        table = read_toml(path, "a robot file")
         if "robot" not in table:
             raise ScenarioError(str(path), "robot", "missing; a robot file has a [robot] table")
         robots.append(ZooRobot(path.stem, path, table["robot"]))
@@ -132,9 +134,11 @@ def joint_types(robot: MobileManipulator) -> str:
 
 def run_robot(
     robot_file: ZooRobot, out: Path, experiments: tuple[str, ...], engines: tuple[str, ...],
-    duration: float | None,
+    duration: float | None, changes: dict[str, Any] | None = None,
 ) -> list[dict[str, Any]]:  # fmt: skip
     """Run one robot through ``experiments`` on ``engines``; each run's row, saved as JSON.
+
+    ``changes`` are scenario keys set in every run (``pbvs-pin zoo --set``), after the robot's.
 
     A robot that cannot be built gives one row per run with its ``error``; so does a run
     that raises (a project error's message, or the exception's type and message).
@@ -159,7 +163,7 @@ def run_robot(
             started = time.perf_counter()
             try:
                 scenario = load_scenario(experiment).with_values(
-                    **values, **{"plant.engine": engine},
+                    **values, **(changes or {}), **{"plant.engine": engine},
                     **({} if duration is None else {"duration": duration}),
                 )  # fmt: skip
                 if robot is None:  # built from its file: messages name it, paths are its own
@@ -194,13 +198,16 @@ def _warning(caught: list[warnings.WarningMessage]) -> dict[str, str]:
 def _figures(log: Any, summary: dict[str, Any]) -> dict[str, Any]:
     """A run's figures for the table (pixels, metres or radians, fractions)."""
     summary = summary | {"scenario": log.meta["scenario"]}
+    judgement = judge(summary)
     return {
         "max_error_last_5s_px": summary["max_abs_error_final_window_px"],
         "target_lost_samples": summary["target_lost_samples"],
         "joint_limit_violation": summary["joint_limit_violation"] or 0.0,
         "oscillation_rms_px": summary["oscillation_rms_px"],
         "net_share": float(np.mean(log["gain_limited"])),
-        "claim_met": claim_met(summary),
+        "claim_met": judgement["met"],
+        "not_judged": judgement["not_judged"],
+        "clauses": judgement["clauses"],
         "min_clearance_m": summary["min_clearance_m"],
         "duration_s": summary["duration_s"],
     }
@@ -209,6 +216,7 @@ def _figures(log: Any, summary: dict[str, Any]) -> dict[str, Any]:
 def run_zoo(
     folder: str | Path, out: str | Path, experiments: tuple[str, ...] = EXPERIMENTS,
     engines: tuple[str, ...] = ENGINES, duration: float | None = None, workers: int = 1,
+    echo: Callable[[str], None] = print, changes: dict[str, Any] | None = None,
 ) -> list[dict[str, Any]]:  # fmt: skip
     """Run every robot of ``folder`` (one task per robot) in a pool of ``workers`` processes.
 
@@ -219,6 +227,9 @@ def run_zoo(
         engines: Plant engines.
         duration: Cut every run to this length [s]; each experiment's own when None.
         workers: Processes; 1 on a shared machine.
+        echo: Told each run's :func:`progress_line` as its robot finishes (rows kept from an
+            earlier sweep included).
+        changes: Scenario keys set in every run (e.g. ``{"controller.feedback": "balanced"}``).
 
     Returns:
         Every run's row, by robot then experiment then engine.
@@ -227,25 +238,57 @@ def run_zoo(
     robots = load_zoo(folder)
     with ProcessPoolExecutor(max_workers=workers) as pool:
         tasks = [
-            pool.submit(run_robot, robot, out, tuple(experiments), tuple(engines), duration)
+            pool.submit(
+                run_robot, robot, out, tuple(experiments), tuple(engines), duration, changes
+            )
             for robot in robots
         ]
-        return [row for task in tasks for row in task.result()]
+        rows = []
+        for task in tasks:
+            rows += task.result()
+            for row in task.result():
+                echo(progress_line(row))
+        return rows
 
 
 def _cell(row: dict[str, Any]) -> list[str]:
     """One run's five figures and claim, as table cells."""
     if "error" in row:
         return ["error", "", "", "", "", ""]
-    met = row["claim_met"]
     return [
         f"{row['max_error_last_5s_px']:.2f}",
         str(row["target_lost_samples"]),
         f"{row['joint_limit_violation']:.3g}",
         f"{row['oscillation_rms_px']:.2f}",
         f"{row['net_share']:.2f}",
-        "-" if met is None else ("yes" if met else "**no**"),
+        _met_cell(row),
     ]
+
+
+def _judgement(row: dict[str, Any]) -> dict[str, Any]:
+    """A zoo row's verdict in the form of :func:`pbvs_pin.claims.judge` (older rows: no clauses)."""
+    return {"met": row["claim_met"], "not_judged": row.get("not_judged"),
+            "clauses": row.get("clauses", [])}  # fmt: skip
+
+
+def _met_cell(row: dict[str, Any]) -> str:
+    """``yes``, ``**no**`` with the failed clauses' names, ``not judged`` or ``-``."""
+    met = row["claim_met"]
+    if met is None:
+        return "not judged" if row.get("not_judged") else "-"
+    names = ", ".join(clause["name"] for clause in failed(_judgement(row)))
+    return "yes" if met else "**no**" + (f" ({names})" if names else "")
+
+
+def progress_line(row: dict[str, Any]) -> str:
+    """One run's line as the zoo goes: robot, experiment, plant, and its verdict or error.
+
+    ``stretch_re1 experiment2 pinocchio: NOT met: last 5 s: 47.6 px >= 8 px; ...``
+    """
+    head = f"{row['robot']} {row['experiment']} {row['engine']}"
+    if "error" in row:
+        return f"{head}: error: {_portable(row['error'])}"
+    return f"{head}: {verdict_text(_judgement(row))}"
 
 
 BASE_KINDS = {0: "fixed", 2: "differential", 3: "omnidirectional"}
@@ -315,16 +358,25 @@ def add_arguments(parser: argparse.ArgumentParser, output: Callable) -> None:
     parser.add_argument("folder", help="folder of robot TOML files")
     output(
         parser, "--out", Output.FOLDER, default="zoo_results",
-        help="folder of the per-run results (default: zoo_results)",
+        help="folder of the per-run results",
     )  # fmt: skip
     output(
         parser, "--page", Output.FILE,
         help="write the table into this RST page's generated block",
     )  # fmt: skip
     parser.add_argument("--duration", type=float, help="cut every run to this length [s]")
-    parser.add_argument("--engines", default=",".join(ENGINES))
-    parser.add_argument("--experiments", default=",".join(EXPERIMENTS))
-    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument(
+        "--engines", default=",".join(ENGINES), help="plants to run, comma-separated"
+    )
+    parser.add_argument(
+        "--experiments", default=",".join(EXPERIMENTS), help="experiments, comma-separated"
+    )
+    parser.add_argument("--workers", type=int, default=1, help="local worker processes")
+    parser.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE",
+        help="change a scenario key in every run, e.g. --set controller.feedback=balanced "
+        "(repeatable; keep a separate --out per setting: existing rows are not rerun)",
+    )  # fmt: skip
 
 
 def command(args: argparse.Namespace) -> None:
@@ -332,7 +384,7 @@ def command(args: argparse.Namespace) -> None:
     engines = tuple(args.engines.split(","))
     started = time.perf_counter()
     rows = run_zoo(args.folder, args.out, tuple(args.experiments.split(",")), engines,
-                   args.duration, args.workers)  # fmt: skip
+                   args.duration, args.workers, changes=getattr(args, "changes", None))  # fmt: skip
     print(f"{len(rows)} runs in {time.perf_counter() - started:.0f} s")
     table = zoo_table(rows, engines)
     for field, title in (("error", "Runs that raised"), ("warning", "Runs that warned")):

@@ -8,9 +8,13 @@ of the rest is in the model, the views or the URDF handed to the MuJoCo plant.
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import REPO_ROOT
 
 from pbvs_pin import MobileManipulator, UrdfError
 from pbvs_pin.catalogue import PIONEER_MOUNT
@@ -25,6 +29,7 @@ from pbvs_pin.placement import (
 )
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.sim.sections import RobotSection
 
 CAMERA = "left_hand_camera_link"
 LEFT_ARM = ("left_s0", "left_s1", "left_e0", "left_e1", "left_w0", "left_w1", "left_w2")
@@ -104,7 +109,7 @@ def test_scenario_names_the_chain_keys():
         load_scenario("experiment1").with_values(
             **table, **{"robot.arm_root": "no_such_link"}
         ).robot.build()
-    with pytest.raises(ScenarioError, match=r"robot\.arm_root.*needs an arm"):
+    with pytest.raises(ScenarioError, match=r"robot\.arm_root.*shipped robot's arm is known"):
         load_scenario("experiment1").with_values(**{"robot.arm_root": "left_arm_mount"})
 
 
@@ -113,3 +118,71 @@ def test_left_arm_holds_the_target(left_arm):
     t, error = log["t"], log["xi_true"] - log["xi_d"]
     assert not np.any(log["target_lost"])
     assert np.max(np.abs(error[t >= 4.0])) < 8.0
+
+
+# ---------------------------------------------------------------- a URDF that carries its arm
+CYTON_ARM = ("shoulder_yaw_joint", "shoulder_pitch_joint", "elbow_pitch_joint")
+TIAGO_ARM = tuple(f"arm_{i}_joint" for i in range(1, 8))
+
+
+def _robot_file(tmp_path, keys: str) -> Path:
+    """A robot file whose `base` is a copy of the reference robot's URDF (platform and arm)."""
+    shutil.copy(REPO_ROOT / "urdf" / "pioneer_cyton.urdf", tmp_path / "robot.urdf")
+    path = tmp_path / "robot.toml"
+    path.write_text(
+        '[robot]\nbase = "robot.urdf"\ncamera_link = "camera_optical_frame"\n'
+        "camera_pose = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\nhome = [0.0, 0.0]\n" + keys
+    )
+    return path
+
+
+def test_a_single_urdfs_chain_is_the_arm_and_the_rest_is_locked(tmp_path, cyton):
+    """base = "robot.urdf" without arm: the shoulder yaw above arm_root is held at zero."""
+    robot = load_scenario(_robot_file(tmp_path, 'arm_root = "shoulder_link"\n')).robot.build()
+    assert robot.arm_joint_names == CYTON_ARM[1:]
+    assert robot.velocity_names == ("u", "omega", *CYTON_ARM[1:])
+    # independent reference: the whole robot's camera with its yaw at zero
+    rng = np.random.default_rng(7)
+    for pitches in rng.uniform(-0.8, 0.8, (3, 2)):
+        cut = robot.camera_pose(robot.with_arm_positions(robot.neutral(), pitches))
+        whole = cyton.camera_pose(cyton.with_arm_positions(cyton.neutral(), [0.0, *pitches]))
+        assert np.allclose(cut.homogeneous, whole.homogeneous, atol=1e-12)
+    # the URDF form takes the keys too
+    urdf = RobotSection.from_toml(
+        {"urdf": str(tmp_path / "robot.urdf"), "camera_frame": "camera_optical_frame",
+         "arm_tip": "upper_arm_link", "home": [0.0, 0.0]}, str(tmp_path / "u.toml"),
+    ).build()  # fmt: skip
+    assert urdf.arm_joint_names == CYTON_ARM[:2]  # the elbow below arm_tip is locked
+
+
+def test_a_robot_carrying_its_arm_locks_its_torso():
+    """TIAGo from torso_lift_link: its seven arm joints move, the torso lift stays at zero."""
+    whole = MobileManipulator.assemble("tiago", None, (0,) * 6, "arm_tool_link", (0,) * 6)
+    arm = MobileManipulator.assemble("tiago", None, (0,) * 6, "arm_tool_link", (0,) * 6,
+                                     arm_root="torso_lift_link")  # fmt: skip
+    assert whole.arm_joint_names == ("torso_lift_joint", *TIAGO_ARM)
+    assert arm.arm_joint_names == TIAGO_ARM
+    posture = np.random.default_rng(3).uniform(-0.5, 0.5, 7)
+    cut = arm.camera_pose(arm.with_arm_positions(arm.neutral(), posture))
+    full = whole.camera_pose(whole.with_arm_positions(whole.neutral(), [0.0, *posture]))
+    assert np.allclose(cut.homogeneous, full.homogeneous, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("keys", "field", "fragment"),
+    [
+        ('arm_root = "no_such_link"\n', "robot.arm_root", "'no_such_link'"),
+        ('arm_root = "forearm_link"\narm_tip = "shoulder_link"\n', "robot.arm_tip",
+         "'shoulder_link' does not hang below link 'forearm_link'"),
+        ('arm_tip = "front_left_wheel_link"\n', "robot.arm_tip",
+         "expected camera_link at or below arm_tip"),
+    ],
+    ids=["unknown-root", "tip-above-root", "camera-off-the-chain"],
+)  # fmt: skip
+def test_a_single_urdfs_bad_chain_names_the_key(tmp_path, keys, field, fragment):
+    path = _robot_file(tmp_path, keys)
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario(path).robot.build()
+    assert caught.value.field == field
+    assert str(caught.value).startswith(f"{path}: {field}: ")
+    assert fragment in str(caught.value)

@@ -26,6 +26,14 @@ from pbvs_pin import (
     rigid_body_terms,
 )
 from pbvs_pin.estimation import AlphaBetaFilter
+from pbvs_pin.exceptions import WrongType
+from pbvs_pin.home import assess_home, compute_home
+from pbvs_pin.manipulability import (
+    arm_manipulability,
+    max_manipulability_posture,
+    whole_body_manipulability,
+)
+from pbvs_pin.sim.detection import register_detector
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.targets import Still, TwoSphereTarget
 from pbvs_pin.validation import as_se3
@@ -95,6 +103,7 @@ CASES = [
     ("frame-unknown", lambda r: r.frame_pose(_q(r), "no_such_frame"), FrameNotFound,
      "no_such_frame"),
     ("model-error-negative", lambda r: r.with_model_error(-1.0), GainError, "model error"),
+    ("frame-dict", lambda r: r.frame_pose(_q(r), {"a": 1}), WrongType, "frame: expected a frame"),
 ]  # fmt: skip
 
 
@@ -138,6 +147,34 @@ STANDALONE = [
         **{"camera.rate": "fast"}), ScenarioError, "camera.rate"),
     ("with-values-unknown", lambda: load_scenario("experiment1").with_values(
         **{"camera.speed": 1.0}), ScenarioError, "camera.speed"),
+    # a dict, a name or a ragged list where an object is expected (issue 31)
+    *[(f"{fn.__name__}-{kind}", lambda fn=fn, bad=bad: fn(bad, np.zeros(9)), WrongType,
+       "robot: expected a MobileManipulator")
+      for fn in (arm_manipulability, whole_body_manipulability, assess_home)
+      for kind, bad in (("dict", {"a": 1}), ("name", "pioneer_cyton"), ("ragged", [[1], [2, 3]]))],
+    *[(f"{fn.__name__}-{kind}", lambda fn=fn, bad=bad: fn(bad), WrongType,
+       "robot: expected a MobileManipulator")
+      for fn in (compute_home, max_manipulability_posture)
+      for kind, bad in (("dict", {"a": 1}), ("name", "pioneer_cyton"))],
+    ("rigid-body-robot-dict", lambda: rigid_body_terms({"a": 1}, np.zeros(9), np.zeros(5)),
+     WrongType, "robot: expected a MobileManipulator"),
+    ("simulate-name", lambda: pbvs_pin.simulate("experiment1"), WrongType,
+     "scenario: expected a Scenario, got 'experiment1' (str)"),
+    ("load-robot-dict", lambda: pbvs_pin.load_robot({"name": "x"}), WrongType,
+     "name: expected a robot name or a URDF path"),
+    ("load-robot-list", lambda: pbvs_pin.load_robot(["pioneer_cyton"]), WrongType, "name"),
+    ("assemble-base-dict", lambda: MobileManipulator.assemble({"a": 1}, "cyton_alpha3"),
+     WrongType, "source: expected a URDF path or a robot name"),
+    ("detector-name-list", lambda: register_detector(["a"], lambda c: None), WrongType,
+     "name: expected a detector name"),
+    ("detector-factory-text", lambda: register_detector("mine", "abc"), WrongType,
+     "factory: expected a callable"),
+    ("controller-robot-name", lambda: pbvs_pin.Controller("pioneer_cyton"), WrongType,
+     "robot: expected a MobileManipulator"),
+    ("colour-detector-camera-dict", lambda: pbvs_pin.ColourDetector({"width": 640}), WrongType,
+     "camera: expected a CameraIntrinsics"),
+    ("platform-forward-axis-list", lambda: pbvs_pin.PlatformFrame(forward_axis=["x"]), GainError,
+     "expected one of ('x', 'y', '-x', '-y')"),
     ("with-values-xi_d-swapped", lambda: load_scenario("experiment1").with_values(
         **{"target.xi_d": [0.0, -60.0, 60.0]}), ScenarioError, "target.xi_d"),
 ]  # fmt: skip

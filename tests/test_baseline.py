@@ -98,3 +98,30 @@ def test_saturation_is_counted_for_the_baseline_law():
     assert figures["v_ref_at_limit_samples"] == 3  # rows 1, 2 and 4; 1.999 is below 2
     text = baseline_section([("experiment1", figures, figures)], 1.0)
     assert text.count("| 1 | 3 |") == 2
+
+
+def test_a_command_cut_by_the_limits_is_saturated_whoever_cut_it():
+    """The law's scaling of u, or the compensator's clip of v_ref onto a limit, both count."""
+    from pbvs_pin.sim.log import command_limited
+
+    limits = np.array([1.0, 2.0])
+    assert command_limited(True, np.array([0.1, 0.1]), limits)  # u scaled, v_ref inside
+    assert command_limited(False, np.array([0.1, -2.0]), limits)  # v_ref clipped at -2
+    assert command_limited(False, np.array([1.0, 0.0]), limits)
+    assert not command_limited(False, np.array([0.999, 1.999]), limits)
+    assert not command_limited(False, np.zeros(2), limits)
+
+
+def test_the_baseline_runs_saturation_is_in_its_saturated_channel(ibvs_experiment2):
+    """Experiment 2's IBVS run puts v_ref on a limit (50 samples when measured) while its u
+    stays inside them: every such sample is saturated, and the summary's fraction is not 0."""
+    from pbvs_pin.sim.metrics import summarize
+
+    log = ibvs_experiment2
+    limits = np.asarray(log.meta["velocity_limits"])
+    at_limit = np.any(np.abs(log["v_ref"]) >= (1 - 1e-6) * limits, axis=1)
+    assert at_limit.sum() > 0
+    assert np.all(log["saturated"][at_limit])
+    figures = comparison_figures(log)
+    assert figures["saturated_samples"] >= figures["v_ref_at_limit_samples"] == at_limit.sum()
+    assert summarize(log)["saturated_fraction"] >= at_limit.mean() > 0

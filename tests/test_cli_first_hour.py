@@ -98,6 +98,33 @@ def test_help_shows_defaults(capsys, command, fragments):
     assert "(default: None)" not in out and "(default: False)" not in out
 
 
+@pytest.mark.parametrize("command", ["info", "list", "run", "compile", "reproduce", "view",
+                                     "analyze", "sweep", "zoo"])  # fmt: skip
+def test_help_has_no_stray_comma_empty_or_doubled_default(capsys, command):
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert ",," not in out and "(default: )" not in out
+    options = re.split(r" (?=--[a-z])", out.split("options:")[1])
+    for option in options:  # each option's text shows its default at most once
+        assert option.count("(default") <= 1, option
+
+
+def test_set_is_explained_and_its_keys_listed(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "a dotted key (TABLE.KEY, or KEY at the top) and a TOML value" in out
+    assert "`pbvs-pin list --keys` lists every key" in out
+    assert main(["list", "--keys"]) == 0
+    keys = capsys.readouterr().out.splitlines()
+    assert any(k.startswith("  camera.rate = ") and "  # " in k for k in keys)
+    from pbvs_pin.sim.scenario import SCHEMA
+
+    listed = {k.split(" = ")[0].strip() for k in keys[1:]}
+    assert listed == {f"{t}.{k}" if t else k for t, table in SCHEMA.items() for k in table}
+
+
 def test_reproduce_refuses_an_unknown_robot_before_running(capsys, tmp_path):
     status = main(["reproduce", "--robots", "pioneer_ur5", "iiwa", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from conftest import URDF_DIR
 
-from pbvs_pin import cli
 from pbvs_pin.catalogue import chain_joints
+from pbvs_pin.claims import verdict_lines
 from pbvs_pin.cli import main
 from pbvs_pin.interrupts import (
     held_interrupts,
@@ -35,7 +35,7 @@ def scenario_of_run(monkeypatch):
     """The scenario ``run`` would simulate, caught before the simulation."""
     caught = []
 
-    def trap(scenario, out, html=None, observer=None):
+    def trap(scenario, out, html=None, observer=None, eye_view=None):
         caught.append(scenario)
         raise SystemExit(0)
 
@@ -109,16 +109,60 @@ def test_reproduce_takes_a_robot_file(tmp_path, monkeypatch):
     assert asked[0]["robots"] == (str(robot_file), "pioneer_ur5")
 
 
-def test_the_verdict_names_the_claim_and_its_rule():
+def test_the_verdict_names_the_claim_the_failed_clauses_and_the_rule():
     summary = {"scenario": "experiment4", "max_abs_error_final_window_px": 0.2,
                "target_lost_samples": 0, "joint_limit_violation": 0.0,
-               "oscillation_rms_px": 0.0}  # fmt: skip
-    line = cli._verdict(summary)
-    assert line.startswith("verdict: experiment4 meets the paper's claim (errors converge")
-    assert "rule: max abs(e) over the last 5 s < 0.5 px" in line
-    summary["max_abs_error_final_window_px"] = 0.7
-    assert "does NOT meet" in cli._verdict(summary)
-    assert cli._verdict({**summary, "scenario": "my_own"}) is None
+               "oscillation_rms_px": 0.0, "duration_s": 99.98}  # fmt: skip
+    verdict, rule = verdict_lines(summary).split("\n")
+    assert verdict == (
+        "verdict: experiment4 meets the paper's claim (errors converge to zero (perfect "
+        "knowledge)): last 5 s: 0.2 px < 0.5 px; target lost: 0 samples <= 0 samples; "
+        "past joint limits: 0 rad or m <= 0.01 rad or m; oscillation: 0 px < 3 px"
+    )
+    assert rule.startswith("rule: max abs(e) over the last 5 s < 0.5 px; target never lost")
+    summary |= {"max_abs_error_final_window_px": 0.7, "oscillation_rms_px": 3.25}
+    verdict = verdict_lines(summary).split("\n")[0]
+    assert verdict.endswith(
+        "does NOT meet the paper's claim (errors converge to zero (perfect knowledge)): "
+        "last 5 s: 0.7 px >= 0.5 px; oscillation: 3.25 px >= 3 px"
+    )
+    summary["duration_s"] = 2.98
+    assert verdict_lines(summary).split("\n")[0].endswith(
+        "is not judged against the paper's claim (errors converge to zero (perfect "
+        "knowledge)): run logged to 2.98 s, shorter than the rule's 5 s window"
+    )
+    assert verdict_lines({**summary, "scenario": "my_own"}) is None
+
+
+@pytest.mark.parametrize("options", [[], ["--json"], ["--eye-view", "strip", "--json"]])
+def test_run_prints_its_verdict_first_and_json_only_when_asked(tmp_path, capsys, monkeypatch,
+                                                                options):  # fmt: skip
+    """The printout of a finished run (the run itself replaced by a hand-built summary)."""
+    import json
+
+    summary = {"scenario": "experiment4", "max_abs_error_final_window_px": 0.2,
+               "target_lost_samples": 0, "joint_limit_violation": 0.0,
+               "oscillation_rms_px": 0.0, "duration_s": 60.0}  # fmt: skip
+    asked = []
+
+    def finished(scenario, out, html=None, observer=None, eye_view=None):
+        asked.append(eye_view)
+        return None, summary
+
+    monkeypatch.setattr("pbvs_pin.experiments.run_scenario", finished)
+    out = tmp_path / "out"
+    assert main(["run", "experiment4", "--out", str(out), *options]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("verdict: experiment4 meets the paper's claim")
+    assert lines[-1].startswith("log, summary (summary.json") and str(out) in lines[-1]
+    assert lines[1].startswith("rule: ")
+    if "--json" in options:
+        assert json.loads("\n".join(lines[2:-1])) == summary
+    else:
+        assert len(lines) == 3 and "--json prints it" in lines[-1]
+    assert asked == [options[1] if "--eye-view" in options else None]
+    if "--eye-view" in options:
+        assert lines[-1].endswith(f"robot's-eye view: {out / 'eye_view.png'}")
 
 
 # ---------------------------------------------------------------- list: arms only
@@ -156,6 +200,8 @@ def test_list_offers_no_hand_and_no_pendulum(capsys):
     for other in ("allegro_left_hand", "double_pendulum", "asr_twodof", "alex_nub_hands",
                   "baxter", "tiago"):  # fmt: skip
         assert f"  {other}\n" not in arms
+    # example-robot-data's "ur3" loads the UR5 (its UR5Loader); the UR3's own names stay
+    assert "  ur3\n" not in arms and "  ur3_limited\n" in arms
 
 
 # ---------------------------------------------------------------- Ctrl-C
@@ -213,13 +259,17 @@ def _run_with_ctrl_c(tmp_path, capsys, delay: float | None) -> str:
         return "finished"
     line = [x for x in err.splitlines() if x.startswith("pbvs-pin:")][-1]
     if not (out / "log.npz").exists():
-        assert line == "pbvs-pin: interrupted" or "nothing was saved" in line
+        assert line.endswith(("nothing was written", "nothing was saved")), line
         return "stopped before the simulation"
     log = RunLog.load(out)
     assert all(len(channel) == len(log["t"]) for channel in log.channels.values())
     assert np.isfinite(log["q"]).all()
     if not log.interrupted:
-        assert line == "pbvs-pin: interrupted" and (out / "summary.json").is_file()
+        assert (out / "summary.json").is_file()
+        assert line.startswith("pbvs-pin: interrupted ") and (
+            f"kept: the log {out / 'log.npz'}, the summary {out / 'summary.json'}" in line
+            or line.endswith("after the outputs were written; nothing was lost")
+        ), line
         return "stopped after the run was saved"
     assert f"t = {log['t'][-1]:.2f} s of {DURATION_S:g} s" in line
     assert not (out / "summary.json").exists()

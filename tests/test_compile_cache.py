@@ -23,8 +23,9 @@ CLAMP = "v_ref[i] = min(max(value, -limits[i]), limits[i])"
 
 NOTICE = """
 import sys
-from pbvs_pin.compile_cache import compile_notice, kernels_cached
-compile_notice(sys.stdout)
+from pbvs_pin.compile_cache import announce_compiles, kernels_cached
+announcing = announce_compiles(stream=sys.stdout)  # kept: it listens to the end
+announcing.__enter__()
 """
 SIMULATE = """
 from pbvs_pin.sim.loop import simulate

@@ -40,6 +40,8 @@ REFERENCE_LIMITS = np.array([0.7, 3.5, 1.2, 1.2, 1.2])
 
 
 def _gains(n: int, rng: np.random.Generator, weights=(1.0,), **extra) -> ServoGains:
+    """Random gains of the paper's law (``feedback`` given in ``extra`` replaces it)."""
+    extra = {"feedback": "transpose", **extra}
     return ServoGains(
         k=tuple(rng.uniform(0.1, 0.5, 3)),
         k1=tuple(rng.uniform(0.1, 1.0, n)),
@@ -107,7 +109,7 @@ def test_command_matches_eq34_written_out(weight_kind, feedback, seed):
     n = 5
     rng = np.random.default_rng(100 + seed)
     weights, w_matrix = _weights(weight_kind, n, rng)
-    gains = _gains(n, rng, weights, use_pseudoinverse_feedback=feedback == "pseudoinverse")
+    gains = _gains(n, rng, weights, feedback=feedback)
     controller = PassivityController(gains, NO_LIMITS)
     jacobian, object_jacobian, target_velocity, secondary = _random_problem(rng, n)
     error_px = rng.uniform(-200.0, 200.0, 3)
@@ -310,20 +312,20 @@ def test_well_conditioned_jacobian_is_not_damped():
     np.testing.assert_allclose(pinv, jacobian.T, atol=1e-14)
 
 
-@pytest.mark.parametrize("feedback", [False, True])
+@pytest.mark.parametrize("feedback", ["transpose", "pseudoinverse"])
 @pytest.mark.parametrize("period", [0.002, 5.0])
 def test_loop_gain_is_k_T_lambda_max_and_the_net_scales_k(feedback, period):
     """``g = k_max T lambda_max(J J^T)`` (``J J# = I``: 1 with ``J#`` feedback), by numpy; above
     the margin 1 the law is eq. (34) with ``k`` times ``1 / g``; ``T = 0`` turns the net off."""
     n = 5
     rng = np.random.default_rng(9)
-    gains = _gains(n, rng, use_pseudoinverse_feedback=feedback, camera_period=period)
+    gains = _gains(n, rng, feedback=feedback, camera_period=period)
     controller = PassivityController(gains, NO_LIMITS)
     jacobian, object_jacobian, target_velocity, secondary = _random_problem(rng, n)
     error_px = rng.uniform(-200.0, 200.0, 3)
     arguments = (error_px, jacobian * SCALE, object_jacobian * SCALE, target_velocity, secondary)
     out = controller.step(*arguments)
-    largest = 1.0 if feedback else np.linalg.eigvalsh(jacobian @ jacobian.T)[-1]
+    largest = 1.0 if feedback == "pseudoinverse" else np.linalg.eigvalsh(jacobian @ jacobian.T)[-1]
     gain = max(gains.k) * period * largest
     assert out.loop_gain == pytest.approx(gain, rel=1e-10)
     assert out.gain_limited == (gain > 1.0) == (period > 1.0)

@@ -20,6 +20,9 @@ from pbvs_pin.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
+BUILD_OUTPUT: dict[str, str] = {}
+"""What the build of the ``site`` fixture printed."""
+
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory) -> Path:
@@ -36,6 +39,7 @@ def site(tmp_path_factory) -> Path:
     )
     assert result.returncode == 0, (result.stdout + result.stderr)[-5000:]
     assert "WARNING" not in result.stderr
+    BUILD_OUTPUT["stdout"] = result.stdout
     return out
 
 
@@ -98,7 +102,7 @@ def test_the_index_leads_to_every_section():
     for page in (
         "getting_started", "gallery", "own_robot", "controller", "scenarios", "faults",
         "analysis", "sweeps", "theory", "design", "style", "api", "internals",
-        "bad_input", "zoo", "rendered_camera", "mutation",
+        "bad_input", "zoo", "rendered_camera", "mutation", "ros2",
     ):  # fmt: skip
         assert re.search(rf"^   {page}$", index, re.M), page
 
@@ -231,7 +235,7 @@ def test_equations_are_typeset_offline(site):
 
 QUICK_START = (
     "pip install . && pbvs-pin reproduce --out results\n"
-    "pip install '.[test]' && ruff check pbvs_pin tests examples && python -m pytest -q -n auto --dist loadfile\n"
+    "pip install '.[test,ros]' && ruff check pbvs_pin tests examples && python -m pytest -q -n auto --dist loadfile\n"
 )
 
 
@@ -248,3 +252,20 @@ def test_the_readme_is_a_front_door():
     assert len(local) >= 10
     for link in local:
         assert (REPO_ROOT / link).exists(), link
+
+
+def test_array_arguments_show_as_arraylike_not_its_expansion(site):
+    text = page_text(site, "api.html")
+    assert "points ( numpy.typing.ArrayLike )" in " ".join(text.split())
+    assert "_SupportsArray" not in text and "_NestedSequence" not in text
+
+
+def test_the_build_says_what_it_did(site):
+    """What it built, where, and that it built without a warning (the fixture's own run)."""
+    printed = BUILD_OUTPUT["stdout"].splitlines()
+    assert printed[0].startswith("building ") and f"into {site}" in printed[0]
+    assert "4 generated: api.rst, internals.rst, scenario_keys.rst, sweep_keys.rst" in printed[0]
+    pages = len(list(site.glob("*.html")))
+    assert printed[-1] == (
+        f"documentation built: {pages} HTML pages, no warning; open {site / 'index.html'}"
+    )

@@ -27,8 +27,9 @@ import numpy as np
 import pytest
 from simhelpers import IMAGE_HEIGHT_PX, TRANSIENT_S, feature_error
 
+from pbvs_pin.claims import claim_met
 from pbvs_pin.experiments import PAPER_CLAIMS, _report
-from pbvs_pin.report import claim_met, readme_block, readme_results, run_row
+from pbvs_pin.report import readme_block, readme_results, run_row
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import FINAL_WINDOW, oscillation_rms, summarize

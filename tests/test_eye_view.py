@@ -63,7 +63,12 @@ JS_EYE = """(t) => {
 }"""
 
 
+JS_BOXES = """() => Object.fromEntries(["eye-view", "pbvs-readout", "pbvs-slider", "pbvs-play"]
+    .map((id) => [id, document.getElementById(id).getBoundingClientRect().toJSON()]))"""
+
+
 def test_replay_shows_the_eye_view_at_the_animation_time(run, tmp_path):
+    """The image of the key at the animation's time, clear of the time and error readout."""
     from browser import Page, chromium
 
     from pbvs_pin.viz.replay import write_run_replay
@@ -78,7 +83,14 @@ def test_replay_shows_the_eye_view_at_the_animation_time(run, tmp_path):
         late = page.page.evaluate(JS_EYE, 0.21)
         page.page.wait_for_function("() => document.getElementById('eye-view').complete")
         shown = page.page.evaluate(JS_EYE, 0.3)
+        boxes = page.page.evaluate(JS_BOXES)
         assert not page.errors, page.errors
+    eye = boxes["eye-view"]
+    for covered in ("pbvs-readout", "pbvs-slider", "pbvs-play"):  # the time and error readout
+        box = boxes[covered]
+        apart = eye["left"] >= box["right"] or eye["right"] <= box["left"] or (
+            eye["top"] >= box["bottom"] or eye["bottom"] <= box["top"])  # fmt: skip
+        assert apart, (covered, eye, box)
     # a 50 Hz log of 0.4 s keyed at 10 Hz: keys at 0, 0.1, 0.2, 0.3 and 0.38 s
     assert early["key"] == 0 and late["key"] == 2 and shown["key"] == 3
     assert shown["width"] == 628 // 2 and shown["src"] > 1000

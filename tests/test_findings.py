@@ -28,7 +28,7 @@ def summary(name: str, final: float = 1.0, **changes) -> dict:
         "v_ref_at_limit_fraction": 0.0, "velocity_tracking_rms": 0.05,
         "velocity_tracking_rms_platform": 0.04, "velocity_tracking_rms_arm": 0.01,
         "odometry_drift_m": 0.0, "odometry_drift_rad": 0.0, "lateral_slip_rms_mps": 0.0,
-        "yaw_rate_ratio": None, "real_time_factor": 30.0,
+        "yaw_rate_ratio": None, "real_time_factor": 30.0, "duration_s": 30.0,
     }  # fmt: skip
     s.update(changes)
     return s
@@ -42,13 +42,30 @@ def analysis(p9: bool = True, p14: bool = True, p27: bool = True) -> dict:
     }
 
 
-def test_the_verdict_names_the_rule_it_was_judged_by():
+def test_the_verdict_names_the_rule_it_was_judged_by_and_the_failed_clauses():
     met, failed = summary("experiment3"), summary("experiment1", final=9.0)
     assert verdict(met) == "met (experiment3's rule)"
-    assert verdict(failed) == "NOT met (experiment1's rule)"
+    assert verdict(failed) == "NOT met (experiment1's rule: last 5 s: 9 px >= 8 px)"
     assert verdict(summary("my_scenario")) == "-"
     assert "| met (experiment3's rule) |" in run_row(met)
-    assert "| NOT met (experiment1's rule) |" in engine_row(failed)
+    assert "| NOT met (experiment1's rule: last 5 s: 9 px >= 8 px) |" in engine_row(failed)
+    short = summary("experiment1", duration_s=2.98)
+    assert verdict(short) == (
+        "not judged (experiment1's rule: run logged to 2.98 s, shorter than the rule's 5 s window)"
+    )
+
+
+def test_other_robots_not_met_name_their_failed_clauses():
+    others = [
+        summary("experiment1", robot="pioneer_ur5"),
+        summary("experiment2", robot="stretch_re1", final=47.6, oscillation_rms_px=4.1),
+        summary("experiment3", robot="stretch_re1", duration_s=3.0),
+    ]
+    text = findings_section([], others, [], [], [])
+    assert (
+        "- **Other robots**: 1 of 3 runs meet their experiment's rule; not met: stretch_re1 "
+        "Experiment 2 (last 5 s, oscillation), stretch_re1 Experiment 3 (not judged)."
+    ) in text
 
 
 def test_claims_are_counted_and_each_rule_is_quoted():
@@ -144,9 +161,9 @@ def test_the_report_tables_the_idealised_runs_behind_the_findings():
             "scenario": name,
             "passivity_9": {"lhs_integral_nu_input": -0.05, "rhs_minus_V1_0": -0.06,
                             "holds": True},
-            "passivity_14": {"lhs_integral_nu_sq": 0.09, "perfect_tracking_rhs_V1_0": 0.06,
+            "passivity_14": {"lhs_integral_nu_feedback": 0.09, "perfect_tracking_rhs_V1_0": 0.06,
                              "holds_with_beta_1_zero": False},
-            "passivity_27": {"lhs_integral_nu_sq": lhs27, "rhs": 0.1, "holds": lhs27 <= 0.1},
+            "passivity_27": {"lhs_integral_nu_feedback": lhs27, "rhs": 0.1, "holds": lhs27 <= 0.1},
         }  # fmt: skip
 
     ideal = {"all": [result(n, 0.09) for n in EXPERIMENTS]}
@@ -160,3 +177,40 @@ def test_the_report_tables_the_idealised_runs_behind_the_findings():
     )
     assert "| all but no latency | experiment4 | " in text and "0.2 <= 0.1: FAILS |" in text
     assert _idealised_section(None) == ""
+
+
+def test_every_comparison_run_that_fails_its_rule_is_named():
+    """Mode `all` failing Experiment 4 (5.68 against 0.5 px) is named; the own mode is not
+    repeated (the claims line has it); the IBVS baseline and the MuJoCo plant are named too."""
+    reference = [summary(n, final=0.2) for n in EXPERIMENTS]
+    modes = [summary(n, final=0.2, compensation=m) for n in EXPERIMENTS
+             for m in ("off", "platform", "all")]  # fmt: skip
+    modes[-1] = summary("experiment4", final=5.68, compensation="all")
+    text = findings_section(reference, [], [], modes, [])
+    assert "**Comparison runs that fail their experiment's rule**: 1 of 8" in text
+    assert (
+        '- compensation mode `all` in Experiment 4: NOT met by the rule "max abs(e) over the '
+        'last 5 s < 0.5 px": 5.68 px over the last 5 s' in text
+    )
+    classic = [summary("experiment2", final=9.0, law="ibvs")]
+    plants = [summary("experiment1", engine="mujoco", robot="tiago", target_lost_samples=2,
+                      target_lost_first_s=3.0), summary("experiment1", robot="tiago")]  # fmt: skip
+    text = findings_section(reference, [], [], modes, [], classic=classic, plants=plants)
+    assert "1 of 8" not in text and "3 of 10" in text
+    assert "- the classic IBVS baseline in Experiment 2: NOT met by the rule" in text
+    assert "- the MuJoCo plant (tiago) in Experiment 1: NOT met" in text
+    assert "lost 2 from 3.00 s" in text
+    passing = findings_section(reference, [], [], modes[:-1], [])
+    assert "**Comparison runs**: all 7 meet their experiment's rule." in passing
+    assert "fail their experiment's rule" not in passing
+    assert "Comparison runs" not in findings_section(reference, [], [], [], [])
+
+
+def test_reproduce_progress_rows_name_the_plant_and_the_compensation_mode():
+    from pbvs_pin.experiments import progress_row
+
+    s = summary("experiment4", final=5.68, compensation="all", engine="mujoco")
+    row = progress_row(7, 60, s)
+    assert row.startswith("[7/60] mujoco plant, compensation all: | pioneer_cyton | experiment4 |")
+    assert row.endswith(run_row(s))
+    assert "| NOT met (experiment4's rule: last 5 s: 5.68 px >= 0.5 px) | 5.68 |" in row

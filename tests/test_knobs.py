@@ -73,6 +73,7 @@ CASES = {  # key: (context, new value)
     "estimator.predict": ({"camera.latency": 0.1}, False),  # the experiments predict
     "estimator.hold": (OCCLUDED, 1.0),
     "estimator.smoothing": ({}, 0.5),
+    "estimator.process_noise": ({}, 0.03),
     "controller.law": ({}, "ibvs"),
     "controller.k": ({}, [0.3]),
     "controller.k1": ({}, [0.5, 0.8, 0.2, 0.2, 0.2]),
@@ -129,11 +130,13 @@ ROBOT_FORM_KEYS = {
     "robot.camera_link", "robot.camera_pose", "robot.wheel_radius", "robot.track",
     "robot.wheel_speed_limit", "robot.arm_root", "robot.arm_tip", "robot.repair_inertia",
     "robot.geometry_density", "robot.drive", "robot.speed_limit", "robot.yaw_rate_limit",
+    "robot.base_joints", "robot.forward_axis",
 }  # fmt: skip
 """Keys that say what the robot is; each form's effect is tested where the form is built
 (test_assembly, test_robot_spec; the chain keys and the inertia repair in test_zoo and
 test_inertia_repair, the inertia from geometry in test_link_inertia, the drive and its limits
-in test_robot_spec and test_holonomic)."""
+in test_robot_spec and test_holonomic, the base joints and the forward axis in
+test_platform_frame)."""
 
 
 def _all_keys() -> set[str]:

@@ -54,7 +54,7 @@ def test_settings_written_by_name_are_read_by_name(indices):
     block[:] = layout.Settings(
         focal=600.0,
         feature_scale=150.0,
-        pseudoinverse_feedback=True,
+        feedback_law=1,
         derivative_time_constant=0.05,
         n_base=2,
         joint_limits=True,
@@ -67,7 +67,7 @@ def test_settings_written_by_name_are_read_by_name(indices):
     )
     read = layout.settings(block)
     assert read.focal == 600.0
-    assert read.pseudoinverse_feedback is True
+    assert read.feedback_law == 1
     assert read.n_base == 2
     assert read.posture is False
     assert read.posture_gain == 0.0

@@ -11,12 +11,12 @@ from conftest import REPO_ROOT
 
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import load_robot
+from pbvs_pin.claims import claim_met
 from pbvs_pin.exceptions import ScenarioError
 from pbvs_pin.report import (
     RENDERED_BEGIN,
     RENDERED_COLUMNS,
     RENDERED_END,
-    claim_met,
     readme_block,
     rendered_results,
 )

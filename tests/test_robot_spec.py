@@ -17,7 +17,8 @@ from conftest import DATA_DIR, REPO_ROOT
 from pbvs_pin.base import Omnidirectional
 from pbvs_pin.catalogue import PIONEER_MOUNT, RECIPES, build_robot
 from pbvs_pin.cli import main
-from pbvs_pin.exceptions import ScenarioError
+from pbvs_pin.exceptions import PbvsWarning, ScenarioError
+from pbvs_pin.experiments import with_robot
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.sections import RobotSection
@@ -129,7 +130,10 @@ def test_drive_keys_give_a_platform_without_wheels_a_drive(tmp_path):
     table = WHEELLESS_ASSEMBLY
     error, _ = _robot_error(tmp_path, table)
     assert error.field == "robot.base"
-    assert "wheel_radius, track and wheel_speed_limit" in str(error)
+    # every way out: the URDF's wheels, the explicit (Pinocchio-only) keys, a holonomic drive
+    for way in ("<limit velocity=...>", "add wheel_radius, track and wheel_speed_limit",
+                "Pinocchio plant only", 'set drive = "omnidirectional"'):  # fmt: skip
+        assert way in str(error), way
     # the toy arm cannot point its camera forward, so its home is given
     drive = "wheel_radius = 0.1\ntrack = 0.4\nwheel_speed_limit = 5.0\nhome = [0.0]\n"
     robot = load_scenario(_scenario_file(tmp_path, table + drive)).robot.build()
@@ -237,11 +241,13 @@ def test_bad_table_names_file_and_field(tmp_path, table, field, fragment):
          "expected 3 values"),
         ('\n[robot]\nname = "pioneer_cyton"\nhome = [0.0, 0.0, 3.0]\n', "robot.home",
          "elbow_pitch_joint"),
+        (ASSEMBLY.replace('"ur5"', '"ur3"'), "robot.arm",
+         "maps 'ur3' to the 'ur5' robot (ur5_robot.urdf)"),
     ],
     ids=[
         "unknown-arm", "unknown-base", "unknown-camera-link", "missing-arm-file",
         "missing-urdf-file", "unknown-camera-frame", "unknown-name", "home-length",
-        "home-off-limits",
+        "home-off-limits", "ur3-is-a-ur5",
     ],
 )  # fmt: skip
 def test_robot_that_cannot_be_built_names_file_and_field(tmp_path, table, field, fragment):
@@ -249,6 +255,21 @@ def test_robot_that_cannot_be_built_names_file_and_field(tmp_path, table, field,
     assert error.field == field
     assert str(error).startswith(f"{path}: {field}: ")
     assert fragment in str(error)
+
+
+def test_a_robot_files_warnings_name_it_not_the_scenario(tmp_path):
+    """`run --robot FILE` (with --duration): the placement warning names FILE."""
+    robot_file = tmp_path / "low_ur5.toml"  # mounted on the floor: the arm is in the platform
+    robot_file.write_text(ASSEMBLY.replace(str(list(PIONEER_MOUNT)), "[0.1, 0.0, 0.0, 0, 0, 0]"))
+    scenario = with_robot(load_scenario("experiment1"), str(robot_file))
+    scenario = scenario.with_values(duration=0.1)
+    with pytest.warns(PbvsWarning) as caught:
+        scenario.robot.build()
+    message = str(caught[0].message)
+    assert message.startswith(f"{robot_file}: at home, arm links inside the platform")
+    assert "experiment1" not in message
+    # a changed robot key makes the table the scenario's again
+    assert scenario.with_values(**{"robot.home": list(UR5.home)}).robot.source == scenario.source
 
 
 def test_relative_paths_resolve_in_the_error(tmp_path):
@@ -297,9 +318,9 @@ def _readme_robot_tables() -> list[str]:
 
 def test_readme_examples_run(tmp_path):
     tables = _readme_robot_tables()
-    assert len(tables) == 2
-    for table, form in zip(tables, ("assembly", "urdf"), strict=True):
-        folder = tmp_path / form
+    assert len(tables) == 3
+    for i, (table, form) in enumerate(zip(tables, ("assembly", "urdf", "assembly"), strict=True)):
+        folder = tmp_path / f"{form}{i}"
         (folder / "urdf").mkdir(parents=True)
         shutil.copy(REPO_ROOT / "urdf" / "pioneer_cyton.urdf", folder / "urdf")
         path = folder / "user.toml"
@@ -309,6 +330,9 @@ def test_readme_examples_run(tmp_path):
         assert scenario.robot.form == form
         log = simulate(scenario)
         assert np.all(np.isfinite(log["xi"][-1]))
+        if "arm_root" in table:  # TIAGo from its torso: the torso lift is locked
+            assert log.meta["velocity_names"] == ["u", "omega", *(f"arm_{j}_joint" for j in
+                                                  range(1, 8))]  # fmt: skip
 
 
 def test_a_robot_whose_camera_cannot_look_forward_needs_its_home(tmp_path):

@@ -15,8 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pbvs_pin.catalogue import RECIPES
 from pbvs_pin.cli import main
-from pbvs_pin.exceptions import OutputError
+from pbvs_pin.exceptions import OutputError, PbvsWarning
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.sections import RobotSection
@@ -25,6 +26,7 @@ from pbvs_pin.zoo import (
     PAGE_END,
     errors,
     load_zoo,
+    run_robot,
     run_zoo,
     write_block,
     zoo_table,
@@ -87,6 +89,7 @@ def test_short_zoo_table_and_errors(short_zoo, tmp_path):
     lines = [line for line in table.splitlines() if line.startswith("   * - ")]
     assert len(lines) == 1 + 3  # header, one robot and experiment per line
     assert "hello-robot-stretch-urdf" in table and "5 P + 1 R" in table
+    assert table.count("     - not judged\n") == 2  # 1 s runs: shorter than the rule's window
     assert "broken" in errors(rows) and "robot.camera_link" in errors(rows)
     assert (out / "stretch_re1" / "experiment1_pinocchio.json").is_file()
     page = tmp_path / "zoo.rst"
@@ -106,7 +109,13 @@ def test_command_line_reuses_the_runs_and_writes_the_page(short_zoo, tmp_path, c
     status = main(["zoo", str(folder), "--out", str(out), "--page", str(page), "--engines",
                    "pinocchio", "--experiments", "experiment1", "--duration", str(DURATION)])  # fmt: skip
     assert status == 0
-    assert "3 runs in" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "3 runs in" in out
+    assert (  # each run's verdict as its robot finishes; 1 s runs are too short to judge
+        "stretch_re1 experiment1 pinocchio: not judged: run logged to 0.98 s, shorter than the "
+        "rule's 5 s window\n"
+    ) in out
+    assert "broken experiment1 pinocchio: error: " in out
     assert "stretch_re1" in page.read_text() and "no_such_link" in page.read_text()
 
 
@@ -176,3 +185,17 @@ def test_a_robot_that_tips_over_on_mujoco_is_listed_with_its_warning(tmp_path):
     assert "tips over on the MuJoCo plant" in rows[0]["warning"]
     assert errors(rows, "warning").startswith("- ``pioneer_panda`` on mujoco (experiment1): ")
     assert errors(rows) == ""
+
+
+def test_a_robot_files_warnings_name_the_file(tmp_path):
+    """The UR5 mounted on the floor: the placement warning names its robot file."""
+    folder = tmp_path / "robots"
+    folder.mkdir()
+    low = BROKEN.replace('"no_such_link"', '"tool0"').replace("0.27", "0.0")
+    (folder / "low_ur5.toml").write_text(low + f"home = {list(RECIPES['pioneer_ur5'].home)}\n")
+    robot = load_zoo(folder)[0]  # run in this process (run_zoo's pool keeps its warnings)
+    with pytest.warns(PbvsWarning) as caught:
+        rows = run_robot(robot, tmp_path / "out", ("experiment1",), ("pinocchio",), 0.1)
+    assert errors(rows) == ""
+    placement = [str(w.message) for w in caught if "at home" in str(w.message)]
+    assert placement[0].startswith(f"{folder / 'low_ur5.toml'}: at home, arm links inside")

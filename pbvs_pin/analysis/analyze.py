@@ -14,8 +14,9 @@ import numpy as np
 from pbvs_pin.analysis.passivity import SIGNAL_SETS, passivity_of_log
 from pbvs_pin.analysis.robustness import bounds_after_t1, choose_t1
 from pbvs_pin.analysis.signals import finite_max, gain_times_error
-from pbvs_pin.exceptions import GainError, NonFiniteValue, PbvsError
+from pbvs_pin.exceptions import GainError, LogError, NonFiniteValue, PbvsError, WrongType
 from pbvs_pin.sim.log import RunLog
+from pbvs_pin.validation import as_number, as_numbers
 
 REQUIRED_CHANNELS = (
     "t",
@@ -29,6 +30,37 @@ REQUIRED_CHANNELS = (
     *SIGNAL_SETS["controller"],
 )
 """Log channels the analysis reads."""
+
+
+META = {
+    "scenario": ("a scenario name (text)", lambda v: isinstance(v, str) and v != ""),
+    "robot": ("a robot name (text)", lambda v: isinstance(v, str) and v != ""),
+    "feature_scale": ("a positive number [px]", lambda v: _positive(v) and np.ndim(v) == 0),
+    "k": ("a list of positive numbers (the gains)", lambda v: isinstance(v, list) and _positive(v)),
+}
+"""Facts of a log's meta the analysis reads: key -> (what is expected, its test)."""
+
+
+def _positive(value: object) -> bool:
+    """Whether ``value`` is a finite positive number, or a non-empty list of them."""
+    try:
+        array = as_numbers("value", value)
+    except PbvsError:
+        return False
+    return array.size > 0 and bool(np.all(np.isfinite(array) & (array > 0)))
+
+
+def check_meta(log: RunLog, source: str) -> None:
+    """Refuse a log whose meta lacks a fact the analysis reads, or holds a wrong one.
+
+    Raises:
+        LogError: Naming the file, the key and what was expected.
+    """
+    for key, (expected, valid) in META.items():
+        if key not in log.meta:
+            raise LogError(source, f"not a whole run log: its meta has no {key!r} ({expected})")
+        if not valid(log.meta[key]):
+            raise LogError(source, f"meta {key!r}: expected {expected}, got {log.meta[key]!r}")
 
 
 def analyze_log(
@@ -52,10 +84,17 @@ def analyze_log(
         in controller units and in pixels (``*_px``).
 
     Raises:
+        WrongType: If ``log`` is not a RunLog, or ``epsilon`` or ``t1`` not a number.
+        LogError: If the meta lacks a fact of :data:`META`, or holds a wrong one.
         GainError: If ``epsilon`` is not in (0, 1) or ``t1`` is outside the run.
         PbvsError: If a channel the analysis needs is missing.
         NonFiniteValue: If ``lambda_min`` holds no finite sample (the target was never seen).
     """
+    if not isinstance(log, RunLog):
+        raise WrongType("log", "a RunLog (RunLog.load of a run's log.npz)", log)
+    epsilon = as_number("epsilon", epsilon)
+    t1 = None if t1 is None else as_number("t1", t1)
+    check_meta(log, source)
     if not 0.0 < epsilon < 1.0:
         raise GainError(f"epsilon: expected 0 < epsilon < 1 (eq. 31), got {epsilon}")
     missing = [name for name in REQUIRED_CHANNELS if name not in log.channels]

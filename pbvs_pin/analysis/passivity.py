@@ -5,9 +5,14 @@ Notation as in :mod:`pbvs_pin.analysis`; ``V1`` is the storage function of eq. (
 
 .. math::
     \int_0^T \nu^T [v + J^\# J_o \dot p]\, dt \ge -V_1(0) \quad (9),\qquad
-    \int_0^T \|\nu\|^2 dt \le \beta = V_1(0) + \beta_1 \quad (13)/(14)
+    \int_0^T \nu^T \nu_{fb}\, dt \le \beta = V_1(0) + \beta_1 \quad (13)/(14)
 
-    \int_0^T \|\nu\|^2 dt \le V_1(0) + \int_0^T \nu^T \tilde v\, dt \quad (27)
+    \int_0^T \nu^T \nu_{fb}\, dt \le V_1(0) + \int_0^T \nu^T \tilde v\, dt \quad (27)
+
+with ``nu_fb`` the law's feedback term (``u = -nu_fb - J# J_o phat_dot + ...``): ``nu`` itself
+for the paper's law, so that ``nu^T nu_fb = |nu|^2`` as the paper writes (13)-(27); ``H nu``
+for the balanced law (:mod:`pbvs_pin.control.balanced`), whose controller draws the power
+``nu^T H nu`` from the passive output instead.
 
 **Which signals.** The inequalities are evaluated on one consistent set of signals,
 :data:`SIGNAL_SETS` ``["true_state"]``: ``nu``, ``V1`` and the input ``v + J# J_o pdot`` all
@@ -35,6 +40,10 @@ SIGNAL_SETS = {
 }
 """Log channels ``(nu, v + J# J_o pdot, V1)`` of each signal set."""
 
+FEEDBACK_CHANNELS = {"true_state": "feedback_true", "controller": "feedback"}
+"""The law's feedback term ``nu_fb`` of each set; a log without it (the paper's law, logs
+written before the balanced law) counts ``nu``."""
+
 
 def passivity_inequalities(
     t: np.ndarray,
@@ -42,6 +51,7 @@ def passivity_inequalities(
     inputs: np.ndarray,
     storage: np.ndarray,
     velocity_error: np.ndarray,
+    feedback: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Eqs. (9), (13)/(14) and (27) over the whole run, from one set of signals.
 
@@ -61,17 +71,19 @@ def passivity_inequalities(
         inputs: ``v + J# J_o pdot``. Shape (T, n).
         storage: ``V1`` [controller units / s]. Shape (T,).
         velocity_error: ``v - u`` [m/s, rad/s]. Shape (T, n).
+        feedback: The law's feedback term ``nu_fb``; None: ``nu`` (the paper's law). Shape (T, n).
 
     Returns:
         ``passivity_9``, ``passivity_14`` and ``passivity_27``, both sides of each.
     """
     supply, dropped = integrate(t, np.sum(nu * inputs, axis=1))
-    nu_sq, dropped_nu = integrate(t, np.sum(nu * nu, axis=1))
+    feedback = nu if feedback is None else feedback
+    drawn, dropped_drawn = integrate(t, np.sum(nu * feedback, axis=1))
     cross, dropped_cross = integrate(t, np.sum(nu * velocity_error, axis=1))
     finite_storage = storage[np.isfinite(storage)]
     v1_0 = float(finite_storage[0]) if finite_storage.size else math.nan
     v1_t = float(finite_storage[-1]) if finite_storage.size else math.nan
-    beta1 = max(0.0, nu_sq + supply)
+    beta1 = max(0.0, drawn + supply)
     beta = v1_0 + beta1
     slack = TOLERANCE * max(abs(v1_0), abs(supply), 1e-12)
     return {
@@ -86,20 +98,20 @@ def passivity_inequalities(
             "dropped_samples": dropped,
         },
         "passivity_14": {
-            "lhs_integral_nu_sq": nu_sq,
+            "lhs_integral_nu_feedback": drawn,
             "beta_1": beta1,
             "rhs_beta": beta,
-            "holds": bool(nu_sq <= beta + slack),
+            "holds": bool(drawn <= beta + slack),
             "perfect_tracking_rhs_V1_0": v1_0,
-            "holds_with_beta_1_zero": bool(nu_sq <= v1_0 + slack),
-            "dropped_samples": dropped_nu,
+            "holds_with_beta_1_zero": bool(drawn <= v1_0 + slack),
+            "dropped_samples": dropped_drawn,
         },
         "passivity_27": {
-            "lhs_integral_nu_sq": nu_sq,
+            "lhs_integral_nu_feedback": drawn,
             "integral_nu_velocity_error": cross,
             "rhs": v1_0 + cross,
-            "holds": bool(nu_sq <= v1_0 + cross + slack),
-            "dropped_samples": dropped_nu + dropped_cross,
+            "holds": bool(drawn <= v1_0 + cross + slack),
+            "dropped_samples": dropped_drawn + dropped_cross,
         },
     }
 
@@ -114,4 +126,7 @@ def passivity_of_log(channels: dict[str, np.ndarray], t: np.ndarray, which: str)
     """
     nu, inputs, storage = (np.asarray(channels[name], dtype=float) for name in SIGNAL_SETS[which])
     velocity_error = np.asarray(channels["v"], dtype=float) - np.asarray(channels["u"], dtype=float)
-    return passivity_inequalities(t, nu, inputs, storage, velocity_error)
+    feedback = channels.get(FEEDBACK_CHANNELS[which])
+    if feedback is not None:
+        feedback = np.asarray(feedback, dtype=float)
+    return passivity_inequalities(t, nu, inputs, storage, velocity_error, feedback)

@@ -15,6 +15,7 @@ from pbvs_pin.analysis.analyze import analyze_log
 from pbvs_pin.analysis.plots import plot_analysis
 from pbvs_pin.exceptions import LogError, OutputError, PbvsError
 from pbvs_pin.sim.log import CHANNELS, RunLog, write_json_atomically, write_text_atomically
+from pbvs_pin.validation import as_path
 
 
 def analyze_run(
@@ -37,7 +38,7 @@ def analyze_run(
         GainError: If ``epsilon`` or ``t1`` is out of range.
         NonFiniteValue: If the run never measured the target.
     """
-    path = Path(path)
+    path = as_path("path", path)
     log_file = path / "log.npz" if path.is_dir() else path
     if not log_file.is_file():
         raise PbvsError(
@@ -47,10 +48,7 @@ def analyze_run(
     missing = [name for name in CHANNELS if name not in log.channels]
     if missing:
         raise LogError(str(log_file), f"not a whole run log: no channel {', '.join(missing)}")
-    try:
-        result = analyze_log(log, epsilon, t1, str(log_file))
-    except KeyError as err:
-        raise LogError(str(log_file), f"not a whole run log: its meta has no {err}") from err
+    result = analyze_log(log, epsilon, t1, str(log_file))
     if out is not None:
         out = Path(out)
         files = [out / "analysis.json", out / "analysis.md"]
@@ -164,11 +162,11 @@ def _passivity_rows(p: dict[str, Any], label: str) -> list[tuple[str, str]]:
         (f"V1(T) - V1(0); identity residual, {label}",
          f"{_fmt(p9['V1_T_minus_V1_0'])}; {_fmt(p9['identity_residual'])}"),
         (f"(13)/(14), {label}: int ||nu||^2 dt <= beta = V1(0) + beta_1",
-         f"{_fmt(p14['lhs_integral_nu_sq'])} <= {_fmt(p14['rhs_beta'])} "
+         f"{_fmt(p14['lhs_integral_nu_feedback'])} <= {_fmt(p14['rhs_beta'])} "
          f"(beta_1 = {_fmt(p14['beta_1'])}): {_fmt(p14['holds'])}"),
         (f"(14) with beta_1 = 0, {label}: int ||nu||^2 dt <= V1(0)",
-         f"{_fmt(p14['lhs_integral_nu_sq'])} <= {_fmt(p14['perfect_tracking_rhs_V1_0'])}: "
+         f"{_fmt(p14['lhs_integral_nu_feedback'])} <= {_fmt(p14['perfect_tracking_rhs_V1_0'])}: "
          f"{_fmt(p14['holds_with_beta_1_zero'])}"),
         (f"(27), {label}: int ||nu||^2 dt <= V1(0) + int nu^T (v - u) dt",
-         f"{_fmt(p27['lhs_integral_nu_sq'])} <= {_fmt(p27['rhs'])}: {_fmt(p27['holds'])}"),
+         f"{_fmt(p27['lhs_integral_nu_feedback'])} <= {_fmt(p27['rhs'])}: {_fmt(p27['holds'])}"),
     ]  # fmt: skip

@@ -44,11 +44,13 @@ class ClassicIbvs(PassivityController):
         target_velocity: npt.ArrayLike,
         secondary: npt.ArrayLike,
         upright: np.ndarray | None = None,
+        room: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> ControlOutput:
         """The classic law with the null-space term. Same diagnostics as the passivity law.
 
         Args: as :meth:`PassivityController.step` (``secondary`` is ``Lambda`` of eq. 16);
-        ``upright`` is ignored (the baseline keeps the paper's null space).
+        ``upright`` and ``room`` are ignored (the baseline keeps the paper's null space and its
+        own pseudo-inverse feedback).
         """
         error_px, jacobian_px, object_jacobian_px, target_velocity, secondary = self._inputs(
             error_px, jacobian_px, object_jacobian_px, target_velocity, secondary

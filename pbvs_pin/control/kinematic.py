@@ -10,6 +10,11 @@ Features enter the controller in *controller units* of ``feature_scale`` pixels
 hundred) the paper's ``k_i = 0.15`` makes the sampled loop diverge. ``J# J_o`` and the
 null-space projector do not depend on the unit.
 
+**Feedback laws** (``controller.feedback``): the paper's ``transpose`` (``nu = J^T K_c e``),
+``pseudoinverse`` (``J# K_c e``) and ``balanced``, every direction of ``J J^T`` at one stated gain
+per camera frame (:mod:`pbvs_pin.control.balanced`, which derives it and says what it does to
+the passivity argument).
+
 Near a singular ``J W^-1 J^T`` the pseudo-inverse is damped (variable damping, Nakamura and
 Hanafusa 1986), and every command is scaled down uniformly, keeping its direction, to respect
 the robot's velocity limits. Non-finite inputs give a zero command and a flag, never NaN.
@@ -24,6 +29,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
+from pbvs_pin.control.balanced import BALANCED_SHARE, balanced_feedback, balanced_gain
 from pbvs_pin.control.upright import (
     LOOP_GAIN_MARGIN,
     RESTORING_RATE,
@@ -43,6 +49,11 @@ __all__ = [
     "storage_function",
 ]
 
+
+TRANSPOSE, PSEUDOINVERSE, BALANCED = 0, 1, 2
+"""The feedback laws, by their code in the compiled step."""
+FEEDBACK_LAWS = ("transpose", "pseudoinverse", "balanced")
+"""Their names, in code order (the ``controller.feedback`` key)."""
 
 ROUNDOFF_FLOOR = 1e-12
 """Smallest eigenvalue of the regularised ``J W^-1 J^T``, relative to its trace."""
@@ -154,9 +165,11 @@ def passivity_law(
     weight_inverse: np.ndarray,
     damping: np.ndarray,
     limits: np.ndarray,
-    pseudoinverse_feedback: bool,
+    feedback_law: int,
     upright: np.ndarray,
     safety: Safety,
+    room_up: np.ndarray,
+    room_down: np.ndarray,
 ) -> LawOutput:
     r"""Eq. (10)/(34) in controller units, saturated uniformly to the velocity limits.
 
@@ -180,9 +193,12 @@ def passivity_law(
         weight_inverse: ``W^-1``. Shape (n, n).
         damping: ``[sigma_0, mu_max]`` of the pseudo-inverse. Shape (2,).
         limits: Velocity limits. Shape (n,).
-        pseudoinverse_feedback: Use ``J# K_c e`` instead of ``nu`` as feedback.
+        feedback_law: :data:`TRANSPOSE` (the paper's ``nu``), :data:`PSEUDOINVERSE`
+            (``J# K_c e``) or :data:`BALANCED` (:func:`balanced_feedback`).
         upright: ``[phi, j_phi]`` (:func:`~pbvs_pin.control.upright.upright_row`). Shape (n + 1,).
         safety: The departures' settings; ``camera_period = 0`` turns the loop-gain net off.
+        room_up: Each velocity's room towards its upper limit (:func:`joint_room`). Shape (n,).
+        room_down: Its room towards the lower limit. Shape (n,).
 
     Returns:
         The command and its diagnostics; ``valid`` is False (and ``u`` zero) when an input
@@ -202,9 +218,11 @@ def passivity_law(
         gains = SafetyOutput(loop_gain, gain_factor, sigma_phi, upright_weight)
         return LawOutput(False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0, gains)
     r = error.shape[0]
-    if safety.camera_period > 0.0:  # loop-gain safety net
+    if feedback_law == BALANCED:  # every direction at its stated gain: nothing for the net to cut
+        loop_gain = BALANCED_SHARE * safety.loop_gain_margin
+    elif safety.camera_period > 0.0:  # loop-gain safety net
         largest = 1.0
-        if not pseudoinverse_feedback:
+        if feedback_law == TRANSPOSE:
             negated = matmul(jacobian, jacobian.T)
             for a in range(r):
                 for b in range(r):
@@ -232,7 +250,13 @@ def passivity_law(
             null_space, pinv, jacobian, weight_inverse, upright, damping[0], safety.upright_rate
         )
     gains = SafetyOutput(loop_gain, gain_factor, sigma_phi, upright_weight)
-    feedback = matvec(pinv, kc_error) if pseudoinverse_feedback else nu
+    if feedback_law == BALANCED:
+        gain = balanced_gain(safety.loop_gain_margin, safety.camera_period, np.max(k))
+        feedback = balanced_feedback(kc_error, jacobian, limits, room_up, room_down, gain)
+    elif feedback_law == PSEUDOINVERSE:
+        feedback = matvec(pinv, kc_error)
+    else:
+        feedback = nu
     u, factor = saturate(null_space - feedback - feedforward, limits)
     if not all_finite(u):
         return LawOutput(False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0, gains)
@@ -263,7 +287,8 @@ class ServoGains:
         feature_scale: Pixels per controller unit of feature [px].
         weights: ``W``: its diagonal (length n or 1), or the full symmetric positive
             definite matrix (n rows of n).
-        use_pseudoinverse_feedback: Use ``-J# K_c e`` instead of the paper's ``-J^T K_c e``.
+        feedback: ``transpose`` (the paper's ``-J^T K_c e``), ``pseudoinverse``
+            (``-J# K_c e``) or ``balanced`` (:func:`balanced_feedback`).
         damping_threshold: Smallest singular value of ``J W^-1/2`` (controller units) below
             which the pseudo-inverse is damped.
         max_damping: Damping factor at a singular ``J``.
@@ -278,7 +303,7 @@ class ServoGains:
     k2: tuple[float, ...] = (0.2,)
     feature_scale: float = 150.0
     weights: tuple = (1.0,)
-    use_pseudoinverse_feedback: bool = False
+    feedback: str = "transpose"
     damping_threshold: float = 0.05
     max_damping: float = 0.05
     upright: bool = True
@@ -290,6 +315,12 @@ class ServoGains:
         """Validate every gain (GainError names the field)."""
         for name in ("k", "k1", "k2"):
             _positive_vector(f"ServoGains.{name}", getattr(self, name))
+        if self.feedback not in FEEDBACK_LAWS:
+            raise GainError(
+                f"ServoGains.feedback: expected one of {', '.join(FEEDBACK_LAWS)}, got "
+                f"{self.feedback!r}",
+                "feedback",
+            )
         weights = np.asarray(self.weights, dtype=float)
         if weights.ndim == 2:
             symmetric = weights.shape[0] == weights.shape[1] and np.allclose(weights, weights.T)
@@ -311,6 +342,11 @@ class ServoGains:
                 f"ServoGains.upright_rate: expected >= 0 [1/s], got {self.upright_rate!r}",
                 "upright_rate",
             )
+
+    @property
+    def feedback_law(self) -> int:
+        """The feedback law's code in the compiled step (:data:`TRANSPOSE`, ...)."""
+        return FEEDBACK_LAWS.index(self.feedback)
 
     def weight_inverse(self, size: int) -> np.ndarray:
         """``W^-1``, shape (size, size).
@@ -424,6 +460,8 @@ class PassivityController:
             float(gains.loop_gain_margin),
         )
         self._k: np.ndarray | None = None
+        self.room = np.ones(n)
+        """Room of each velocity towards its limits (:func:`joint_room`): none is near one."""
 
     def pseudo_inverse(self, jacobian: np.ndarray) -> tuple[np.ndarray, float, bool]:
         """Weighted right pseudo-inverse ``J#``, damped near singularities.
@@ -448,6 +486,7 @@ class PassivityController:
         target_velocity: npt.ArrayLike,
         secondary: npt.ArrayLike,
         upright: np.ndarray | None = None,
+        room: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> ControlOutput:
         """Compute the command ``u`` of eq. (34) (:func:`passivity_law`).
 
@@ -459,6 +498,9 @@ class PassivityController:
             secondary: ``Lambda`` of eq. (16). Shape (n,).
             upright: ``[phi, j_phi]`` (:func:`~pbvs_pin.control.upright.upright_row`);
                 None leaves the null-space term as the paper has it. Shape (n + 1,).
+            room: Each velocity's room towards its upper and lower limits
+                (:func:`joint_room`), for the balanced feedback; None: no joint near a limit.
+                Shapes (n,), (n,).
 
         Returns:
             The command and its diagnostics. A non-finite input gives ``u = 0``,
@@ -476,8 +518,8 @@ class PassivityController:
         law = passivity_law(
             error_px / scale, jacobian_px / scale, object_jacobian_px / scale, target_velocity,
             secondary, self.feature_gains(r), self.k1, self.k2, self.weight_inverse,
-            self.damping, self.velocity_limits, self.gains.use_pseudoinverse_feedback, upright,
-            self.safety,
+            self.damping, self.velocity_limits, self.gains.feedback_law, upright, self.safety,
+            *(room if room is not None else (self.room, self.room)),
         )  # fmt: skip
         if not law.valid:
             return self.zero_output(r)

@@ -98,8 +98,8 @@ class Settings(NamedTuple):
     """Focal length [px]."""
     feature_scale: float
     """Pixels per controller unit of feature [px]."""
-    pseudoinverse_feedback: bool
-    """Feed back ``J# K_c e`` instead of the paper's ``J^T K_c e``."""
+    feedback_law: int
+    """The feedback law (:data:`~pbvs_pin.control.kinematic.TRANSPOSE`, ...)."""
     derivative_time_constant: float
     """Low-pass time constant of the command derivative ``u_dot`` [s]."""
     n_base: int
@@ -278,7 +278,7 @@ def settings(block: np.ndarray) -> Settings:
     return Settings(
         focal=block[0],
         feature_scale=block[1],
-        pseudoinverse_feedback=block[2] > 0.0,
+        feedback_law=int(block[2]),
         derivative_time_constant=block[3],
         n_base=int(block[4]),
         posture=block[5] > 0.0,

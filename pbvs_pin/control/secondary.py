@@ -18,12 +18,20 @@ import numpy as np
 from numba import njit
 
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.joint_angles import arm_difference
 
 
 @njit(cache=True, inline="always")
-def posture_term(arm: np.ndarray, target: np.ndarray, gain: float) -> np.ndarray:
-    r"""Eq. (19): ``f_i = k_Lambda (theta_id - theta_i)``. Shape (n_arm,)."""
-    return gain * (target - arm)
+def posture_term(
+    arm: np.ndarray, target: np.ndarray, gain: float, continuous: np.ndarray
+) -> np.ndarray:
+    r"""Eq. (19): ``f_i = k_Lambda (theta_id - theta_i)``. Shape (n_arm,).
+
+    A continuous joint's ``theta_id - theta_i`` is the shortest way round
+    (:func:`~pbvs_pin.joint_angles.arm_difference`): 0.02 rad across ``+-pi`` is 0.02 rad, not
+    ``2 pi - 0.02``.
+    """
+    return gain * arm_difference(target, arm, continuous)
 
 
 @njit(cache=True, inline="always")
@@ -182,10 +190,13 @@ class ArmPosture(SecondaryObjective):
     Attributes:
         target: ``theta_d`` [rad or m]. Shape (n_arm,).
         gain: ``k_Lambda`` [1/s].
+        continuous: Whether each arm joint is continuous (its difference wraps,
+            :func:`posture_term`); None: none is. Shape (n_arm,).
     """
 
     target: np.ndarray
     gain: float = 1.0
+    continuous: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         """Reject a non-positive gain."""
@@ -193,8 +204,12 @@ class ArmPosture(SecondaryObjective):
 
     def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
         """``[0, ..., k (theta_d - theta)]``."""
+        target = np.asarray(self.target, dtype=float)
+        continuous = np.zeros(target.shape[0], dtype=np.bool_)
+        if self.continuous is not None:
+            continuous = np.asarray(self.continuous, dtype=np.bool_)
         out = np.zeros(n)
-        out[n_base:] = posture_term(state.arm_positions, self.target, self.gain)
+        out[n_base:] = posture_term(state.arm_positions, target, self.gain, continuous)
         return out
 
 

@@ -154,7 +154,7 @@ def kinematic_law(
         k2=tuple(per_dof(settings, "controller.k2", _reference_gains(spec.k2, model), n)),
         feature_scale=spec.feature_scale,
         weights=_weights(settings, spec.weights, n),
-        use_pseudoinverse_feedback=spec.feedback == "pseudoinverse",
+        feedback=spec.feedback,
         upright=spec.upright,
         upright_rate=spec.upright_rate,
         camera_period=settings.sample_period,
@@ -235,7 +235,7 @@ def secondary_objectives(
             )
         )
     if spec.posture:
-        objectives.append(ArmPosture(target, spec.k_lambda))
+        objectives.append(ArmPosture(target, spec.k_lambda, model.arm_continuous))
     if spec.joint_limits:
         lower, upper = model.arm_position_limits()
         objectives.append(JointLimitAvoidance(lower, upper))

@@ -31,6 +31,7 @@ import pinocchio as pin
 from numba import njit
 
 from pbvs_pin.control import layout
+from pbvs_pin.control.balanced import joint_room
 from pbvs_pin.control.compensation import (
     DynamicCompensator,
     compensation_law,
@@ -52,8 +53,8 @@ from pbvs_pin.control.secondary import (
 from pbvs_pin.control.tracking import predict_points
 from pbvs_pin.control.upright import Safety, upright_row
 from pbvs_pin.features import ImageMeasurement, feature_jacobians
+from pbvs_pin.joint_angles import arm_angles
 from pbvs_pin.linalg import matmul
-from pbvs_pin.robot import arm_angles
 
 LOCAL = pin.LOCAL
 NAN = float("nan")
@@ -119,7 +120,9 @@ def fused_control_step(
     theta = arm_angles(q, index.arm_q_indices, index.arm_continuous)
     secondary = np.zeros(n)
     if setting.posture:
-        secondary[n_base:] += posture_term(theta, p.posture_target, setting.posture_gain)
+        secondary[n_base:] += posture_term(
+            theta, p.posture_target, setting.posture_gain, index.arm_continuous
+        )
     if setting.joint_limits:
         secondary[n_base:] += joint_limit_term(
             theta, p.lower, p.upper, setting.limit_margin, setting.limit_gain
@@ -155,10 +158,11 @@ def fused_control_step(
     safety = Safety(
         setting.upright, setting.upright_rate, setting.camera_period, setting.loop_gain_margin
     )
+    room_up, room_down = joint_room(theta, p.lower, p.upper, n_base, n)
     law = passivity_law(
         error, jacobian, object_jacobian, target_velocity, secondary, p.k, p.k1, p.k2,
-        p.weight_inverse, p.pseudo_inverse_damping, p.velocity_limits,
-        setting.pseudoinverse_feedback, upright, safety,
+        p.weight_inverse, p.pseudo_inverse_damping, p.velocity_limits, setting.feedback_law,
+        upright, safety, room_up, room_down,
     )  # fmt: skip
     u = law.u
     # eq. (20), with the low-pass filtered derivative of the command
@@ -255,7 +259,7 @@ class FusedControlStep:
         p.settings[:] = layout.Settings(
             focal=model.camera.focal_px,
             feature_scale=controller.gains.feature_scale,
-            pseudoinverse_feedback=controller.gains.use_pseudoinverse_feedback,
+            feedback_law=controller.gains.feedback_law,
             derivative_time_constant=compensator.tau,
             n_base=model.n_base,
             upright=controller.gains.upright,
@@ -264,13 +268,8 @@ class FusedControlStep:
             loop_gain_margin=controller.gains.loop_gain_margin,
             **switched_on,
         )
-        self.xi_d = p.xi_d
-        self.settings = p.settings
-        """View of the constant scalars (:class:`~pbvs_pin.control.layout.Settings`)."""
         self.state = np.zeros(layout.state_size(self.indices))
-        self.views = layout.state_views(self.state, self.indices)
-        """Named views of ``state``, the last step's memory and outputs."""
-        self._u, self._v_ref, self._scalars = self.views.u, self.views.v_ref, self.views.scalars
+        self._bind_views()
         self._v2 = layout.slot(layout.StepScalars, "v2")
         self._has_previous = layout.slot(layout.StepScalars, "has_previous")
         self._pinocchio = (
@@ -280,6 +279,31 @@ class FusedControlStep:
             model.selection,
             np.zeros(model.model.nv),
         )
+
+    def _bind_views(self) -> None:
+        """Set the named views into ``params`` and ``state`` (after building or copying)."""
+        p = layout.parameter_views(self.params, self.indices)
+        self.xi_d = p.xi_d
+        self.settings = p.settings
+        """View of the constant scalars (:class:`~pbvs_pin.control.layout.Settings`)."""
+        self.views = layout.state_views(self.state, self.indices)
+        """Named views of ``state``, the last step's memory and outputs."""
+        self._u, self._v_ref, self._scalars = self.views.u, self.views.v_ref, self.views.scalars
+
+    def __getstate__(self) -> dict:
+        """The buffers without their views: a copy (``copy.deepcopy``, pickle) rebinds them.
+
+        A view copied on its own would be a separate array, no longer written by the step.
+        """
+        state = dict(self.__dict__)
+        for name in ("xi_d", "settings", "views", "_u", "_v_ref", "_scalars"):
+            del state[name]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        """Restore the buffers and bind the views to them."""
+        self.__dict__.update(state)
+        self._bind_views()
 
     @staticmethod
     def supports(controller: PassivityController, objectives: list[SecondaryObjective]) -> bool:

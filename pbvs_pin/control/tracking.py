@@ -24,6 +24,10 @@ capture time and the encoders at that time.
   low-passed, by a first-order filter with pole ``1 - w`` at the frame rate ``f_s``: a
   bandwidth of ``-ln(1 - w) f_s / (2 pi)`` (0.2 at 30 Hz: 1.07 Hz) and a white-noise standard
   deviation reduced by ``sqrt(w / (2 - w))`` (0.2: a third). ``w = 1`` is no filter.
+- **gate** (outliers): a new frame is first compared with the same prediction by the
+  innovation gate of :mod:`pbvs_pin.control.gating`; a frame that fails it is not used, and
+  the last of :data:`~pbvs_pin.control.gating.RESTART_AFTER` failures in a row restarts the
+  estimate from itself.
 """
 
 from __future__ import annotations
@@ -31,7 +35,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from pbvs_pin.camera import back_project_points, project_points
+from pbvs_pin.camera import MIN_DEPTH, back_project_points, project_points
+from pbvs_pin.control.gating import InnovationGate
 from pbvs_pin.estimation import VelocityEstimator
 from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.robot import MobileManipulator
@@ -74,6 +79,7 @@ class TargetTracker:
         predict: Bring each frame up to now (module docstring).
         hold: Servo on the prediction this long after a loss [s]; 0: no hold.
         smoothing: Weight ``w`` of a new frame against its prediction, in (0, 1].
+        gate: The innovation gate new frames pass; None: every frame is used.
 
     Attributes:
         measurement: The newest measurement of the target (None before the first).
@@ -95,8 +101,10 @@ class TargetTracker:
         predict: bool,
         hold: float,
         smoothing: float,
+        gate: InnovationGate | None = None,
     ) -> None:
         self.model = model
+        self.gate = gate
         self.estimator = estimator
         self.predict, self.hold, self.smoothing = predict, hold, smoothing
         self.measurement: ImageMeasurement | None = None
@@ -114,22 +122,43 @@ class TargetTracker:
         capture_time: float,
         q_capture: np.ndarray,
         velocity: np.ndarray,
-    ) -> None:
-        """Use a new frame: keep its measurement and update the filter.
+    ) -> str:
+        """Use a new frame unless it fails the gate: keep its measurement, update the filter.
 
         Args:
             measurement: The frame's points and depths; None when it does not show the target.
             capture_time: When it was taken [s].
             q_capture: The encoders at that time. Shape (nq,).
             velocity: The target velocity to predict with [m/s]. Shape (3,).
+
+        Returns:
+            Why the frame was not used (it failed the gate); empty when it was.
         """
         if measurement is None:
             self.lost = True
-            return
+            return ""
+        prior = None
+        if self.measurement is not None:
+            prior = self.predicted(capture_time, q_capture, velocity)
+            if not (prior.depths > MIN_DEPTH).all():  # predicted behind the camera: no gate
+                prior = None
+        if prior is not None and self.gate is not None:
+            age = capture_time - self.capture_time
+            statistic = self.gate.statistic(
+                measurement.points, measurement.depths, prior.points, prior.depths, age
+            )
+            used, restart = self.gate.verdict(statistic)
+            if not used:
+                return (
+                    f"innovation {statistic:.3g} beyond the gate's {self.gate.threshold:.3g} "
+                    "(control.gating): an outlier, not used"
+                )
+            if restart:
+                self.estimator.reset()
+                prior = None
         self.lost = False
         model = self.model
-        if self.smoothing < 1 and self.measurement is not None:
-            prior = self.predicted(capture_time, q_capture, velocity)
+        if self.smoothing < 1 and prior is not None:
             measurement = ImageMeasurement(
                 prior.points + self.smoothing * (measurement.points - prior.points),
                 prior.depths + self.smoothing * (measurement.depths - prior.depths),
@@ -143,6 +172,7 @@ class TargetTracker:
         in_camera = back_project_points(measurement.points, measurement.depths, self._focal)
         self.world = in_camera @ pose.rotation.T + pose.translation
         self.estimator.update(pose.act(in_camera.mean(axis=0)), capture_time)
+        return ""
 
     def current(self, t: float, q: np.ndarray, velocity: np.ndarray) -> ImageMeasurement | None:
         """What the controller servoes on at ``t``: the measurement, its prediction, or None.
@@ -170,9 +200,7 @@ class TargetTracker:
         held = self.lost and self.hold > 0 and not expired
         fresh = not self.lost and not expired
         self.predicting = self.measurement is not None and (held or (self.predict and fresh))
-        self.used = (
-            self.prediction if self.predicting else (self.measurement if fresh else None)
-        )
+        self.used = self.prediction if self.predicting else (self.measurement if fresh else None)
         return self.used
 
     def predicted(self, t: float, q: np.ndarray, velocity: np.ndarray) -> ImageMeasurement:
@@ -192,3 +220,5 @@ class TargetTracker:
         self.measurement, self.capture_time, self.used = None, -np.inf, None
         self.lost = self.predicting = False
         self.estimator.reset()
+        if self.gate is not None:
+            self.gate.clear()

@@ -31,7 +31,8 @@ import cv2
 import numpy as np
 
 from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.exceptions import GainError, ShapeError
+from pbvs_pin.exceptions import GainError, ShapeError, WrongType
+from pbvs_pin.validation import as_instance
 
 SPHERE_HUES = (120.0, 60.0)
 """Hue [deg] of the upper and of the lower sphere (green and yellow): far from the reference
@@ -143,6 +144,7 @@ class ColourDetector(Detector):
         max_diameter: float | None = None,
         min_fill: float = 0.8,
     ) -> None:
+        camera = as_instance("camera", camera, CameraIntrinsics)
         if max_diameter is None:
             max_diameter = 0.25 * min(camera.width, camera.height)
         for name, value, low, high in (
@@ -245,7 +247,14 @@ def register_detector(name: str, factory: DetectorFactory) -> None:
     Args:
         name: The key's value.
         factory: Called with the camera's intrinsics, returns the detector.
+
+    Raises:
+        WrongType: If ``name`` is not text or ``factory`` cannot be called.
     """
+    if not isinstance(name, str) or not name:
+        raise WrongType("name", "a detector name (text)", name)
+    if not callable(factory):
+        raise WrongType("factory", "a callable (intrinsics -> detector)", factory)
     _DETECTORS[name] = factory
 
 

@@ -37,6 +37,7 @@ def key(
     length: int | None = None,
     optional: type | None = None,
     matrix: bool = False,
+    names: bool = False,
 ) -> Any:
     """A scenario key: a dataclass field with its default, documentation and check.
 
@@ -55,10 +56,11 @@ def key(
         optional: With a ``None`` default, the type of the value when given (``float``,
             ``str``); arrays when not given.
         matrix: Whether the array may also be an array of arrays (a matrix).
+        names: Whether the array holds strings (names) instead of numbers.
     """
     metadata = {
         "doc": doc, "sign": sign, "choices": choices, "length": length, "optional": optional,
-        "matrix": matrix,
+        "matrix": matrix, "names": names,
     }  # fmt: skip
     return field(default=default, metadata=metadata)
 
@@ -147,6 +149,10 @@ def _checked(spec: Field, value: Any) -> Any:
     default = spec.default
     if default is None and value is not None and meta["optional"] is not None:
         default = meta["optional"]()
+    if meta.get("names") and value is not None:
+        if not isinstance(value, list | tuple) or not all(isinstance(x, str) for x in value):
+            raise GainError(f"expected a list of names (strings), got {value!r}", spec.name)
+        return tuple(value)
     value = _typed(spec.name, value, default, meta.get("matrix", False))
     if value is None:
         return value

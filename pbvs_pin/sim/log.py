@@ -45,6 +45,7 @@ from pbvs_pin.features import ImageMeasurement
 from pbvs_pin.manipulability import arm_jacobian, manipulability
 from pbvs_pin.outputs import Output, check_output
 from pbvs_pin.sim.obstacles import clearance
+from pbvs_pin.sim.passivity_signals import feedback_terms, passivity_terms, true_passivity_terms
 from pbvs_pin.sim.scenario import obstacle_table
 from pbvs_pin.sim.sensing import planar_pose
 from pbvs_pin.validation import as_path
@@ -55,14 +56,34 @@ if TYPE_CHECKING:
     from pbvs_pin.sim.sensing import Sensing
     from pbvs_pin.sim.setup import Setup
 
+AT_LIMIT = 1.0 - 1e-6
+"""A velocity counts as at its limit from this fraction of the limit on."""
+
+
+def command_limited(scaled: bool, v_ref: np.ndarray, limits: np.ndarray) -> bool:
+    """Whether the velocity limits cut the command (the ``saturated`` channel).
+
+    They cut it when the law scaled ``u`` down, or when a component of ``v_ref`` sits at its
+    limit (the compensator clips ``v_ref`` to the limits, eq. 20): a law whose ``u`` stays
+    inside the limits (the classic IBVS baseline) can still drive ``v_ref`` onto them
+    through the compensation.
+
+    Args:
+        scaled: The law scaled ``u`` down (``ControlOutput.saturated``).
+        v_ref: Velocity reference sent to the robot [m/s, rad/s]. Shape (n,).
+        limits: Velocity limits of the controller's model [m/s, rad/s]. Shape (n,).
+    """
+    return bool(scaled) or bool(np.any(np.abs(v_ref) >= AT_LIMIT * limits))
+
+
 CHANNELS = (
     "t", "xi", "xi_true", "xi_d", "u", "v_ref", "v", "q", "arm", "target", "target_estimate",
     "target_velocity", "target_velocity_estimate", "obstacle_distance", "obstacle_angle",
     "clearance", "manipulability", "storage", "storage_v2", "nu", "passivity_input",
     "lambda_min", "gamma", "saturated", "damped", "target_lost", "valid", "loop_gain",
     "gain_limited", "upright_angle", "nu_true", "storage_true", "passivity_input_true",
-    "xi_measured", "predicted", "v_measured", "platform_pose", "platform_pose_measured",
-    "wheel_angles", "body_velocity", "wheel_velocity",
+    "feedback", "feedback_true", "xi_measured", "predicted", "v_measured", "platform_pose",
+    "platform_pose_measured", "wheel_angles", "body_velocity", "wheel_velocity",
 )  # fmt: skip
 """Names of the arrays in a log."""
 
@@ -124,12 +145,17 @@ class RunLog:
         if path.is_dir():
             path = path / "log.npz"
         try:
-            with np.load(path, allow_pickle=False) as data:
+            data = np.load(path, allow_pickle=False)
+            if not isinstance(data, np.lib.npyio.NpzFile):  # a .npy file: one array
+                raise LogError(str(path), "one NumPy array (.npy), not a run log (expected the "
+                               ".npz archive that pbvs-pin run writes)")  # fmt: skip
+            with data:
                 meta = json.loads(str(data["meta"]))
                 channels = {name: data[name] for name in data.files if name != "meta"}
         except FileNotFoundError as err:
             raise LogError(str(path), "no such file (expected a run's log.npz)") from err
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as err:
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error,
+                TypeError, UnicodeDecodeError, NotImplementedError) as err:  # fmt: skip
             raise LogError(str(path), f"not a readable run log ({type(err).__name__})") from err
         if not isinstance(meta, dict) or "t" not in channels or channels["t"].ndim != 1:
             raise LogError(str(path), "not a run log: no meta table or no time channel t")
@@ -292,8 +318,8 @@ class RunRecorder:
             ("target_velocity_estimate", target_velocity),
             ("obstacle_distance", laser[0]), ("obstacle_angle", laser[1]),
             ("storage", output.storage), ("storage_v2", v2), ("nu", output.nu),
-            ("saturated", output.saturated), ("damped", output.damped),
-            ("target_lost", tracker.lost), ("valid", output.valid),
+            ("saturated", command_limited(output.saturated, v_ref, setup.model.velocity_limits)),
+            ("damped", output.damped), ("target_lost", tracker.lost), ("valid", output.valid),
             ("loop_gain", output.loop_gain), ("gain_limited", output.gain_limited),
             ("upright_angle", output.upright_angle), ("predicted", tracker.predicting),
             ("v_measured", self.sensing.v),
@@ -330,17 +356,25 @@ class RunRecorder:
         self._object_jacobians = self._object_jacobians[:samples]
         recorded = {name: np.array(values[:samples]) for name, values in self.rows.items()}
         derived = _derived_in_one_pass(setup, self.footprint, recorded["t"], recorded["q"])
+        jacobians = np.array(self._jacobians)
         derived.update(
-            _passivity_terms(
+            passivity_terms(
                 setup,
-                np.array(self._jacobians),
+                jacobians,
                 np.array(self._object_jacobians),
                 recorded["v"],
                 derived["target_velocity"],
                 recorded["target_velocity_estimate"],
             )
         )
-        derived.update(_true_passivity_terms(setup, derived, recorded["v"]))
+        derived.update(true_passivity_terms(setup, derived, recorded["v"]))
+        derived["feedback"] = feedback_terms(
+            setup, recorded["xi"] - setup.xi_d, jacobians, recorded["nu"], derived["arm"],
+        )  # fmt: skip
+        derived["feedback_true"] = feedback_terms(
+            setup, derived["xi_true"] - setup.xi_d, derived.pop("jacobian_true"),
+            derived["nu_true"], derived["arm"],
+        )  # fmt: skip
         derived["xi_d"] = np.broadcast_to(setup.xi_d, recorded["xi"].shape).copy()
         derived.update(
             _slip(setup, recorded["t"], derived["platform_pose"], recorded["wheel_angles"])
@@ -366,6 +400,7 @@ class RunRecorder:
                 [None if not np.isfinite(x) else float(x) for x in side]
                 for side in setup.robot.arm_position_limits()
             ],
+            "arm_continuous": setup.robot.arm_continuous.tolist(),
             "compensation": scenario.compensation.mode,
             "duration": float(scenario.duration),
             "interrupted": interrupted,
@@ -382,6 +417,7 @@ class RunRecorder:
             "detection": (
                 setup.sensor.renderer.detection_meta() if setup.sensor.renderer else None
             ),
+            "controller_counts": setup.control.counts.as_dict(),
         }
         return RunLog(channels, meta)
 
@@ -424,77 +460,6 @@ def _derived_in_one_pass(
         arm_jacobians.append(arm_jacobian(model, q))
     out["manipulability"] = manipulability(np.array(arm_jacobians))
     return out
-
-
-def _passivity_terms(
-    setup: Setup,
-    jacobians: np.ndarray,
-    object_jacobians: np.ndarray,
-    v: np.ndarray,
-    target_velocity: np.ndarray,
-    estimated_velocity: np.ndarray,
-) -> dict[str, np.ndarray]:
-    """``v + J# J_o pdot`` (input of eq. 9), ``lambda_min(J J^T)`` and ``gamma`` (eq. 31).
-
-    All in controller units, for every sample at once; NaN where there was no measurement.
-
-    Args:
-        setup: The run's blocks.
-        jacobians: ``J`` [px]. Shape (N, r, n).
-        object_jacobians: ``J_o`` [px/m]. Shape (N, r, 3).
-        v: Actuated velocities. Shape (N, n).
-        target_velocity: True target velocities [m/s]. Shape (N, 3).
-        estimated_velocity: Estimated target velocities [m/s]. Shape (N, 3).
-    """
-    scale = setup.law.gains.feature_scale
-    jacobian, object_jacobian = jacobians / scale, object_jacobians / scale
-    seen = np.isfinite(jacobian).all(axis=(1, 2)) & np.isfinite(object_jacobian).all(axis=(1, 2))
-    samples, _, n = jacobian.shape
-    passivity_input = np.full((samples, n), np.nan)
-    lambda_min = np.full(samples, np.nan)
-    for i in np.flatnonzero(seen):
-        pinv = setup.law.pseudo_inverse(jacobian[i])[0]
-        passivity_input[i] = v[i] + pinv @ (object_jacobian[i] @ target_velocity[i])
-    if seen.any():
-        gram = jacobian[seen] @ jacobian[seen].transpose(0, 2, 1)
-        lambda_min[seen] = np.linalg.eigvalsh(gram)[:, 0]
-    gamma = np.einsum("sij,sj->si", object_jacobian, target_velocity - estimated_velocity)
-    return {"passivity_input": passivity_input, "lambda_min": lambda_min, "gamma": gamma}
-
-
-def _true_passivity_terms(
-    setup: Setup, derived: dict[str, np.ndarray], v: np.ndarray
-) -> dict[str, np.ndarray]:
-    r"""The true-state passivity set: ``nu``, ``V1`` and the input of eq. (9) from the truth.
-
-    With ``e = (xi_true - xi_d) / feature_scale`` and the true robot's ``J``, ``J_o``:
-
-    .. math::
-        \nu = J^T K_c(e)\, e \ (9),\qquad V_1 = \sum_i k_i (|e_i| - \ln(1 + |e_i|)) \ (7),
-        \qquad \text{input} = v + J^\# J_o \dot p
-
-    with the true ``v`` and ``pdot`` and the controller's weighted pseudo-inverse of the true
-    ``J``. NaN where the target is behind the camera. Pops ``jacobian_true`` and
-    ``object_jacobian_true`` from ``derived`` (they are not logged).
-
-    Args:
-        setup: The run's blocks.
-        derived: Channels of :func:`_derived_in_one_pass`.
-        v: Actuated velocities. Shape (N, n).
-    """
-    scale = setup.law.gains.feature_scale
-    jacobian = derived.pop("jacobian_true") / scale
-    object_jacobian = derived.pop("object_jacobian_true") / scale
-    k = setup.law.feature_gains(setup.features.size)
-    error = (derived["xi_true"] - setup.xi_d) / scale
-    magnitude = np.abs(error)
-    nu = np.einsum("sij,si->sj", jacobian, k * error / (1.0 + magnitude))
-    storage = np.sum(k * (magnitude - np.log1p(magnitude)), axis=1)
-    inputs = np.full_like(v, np.nan, dtype=float)
-    for i in np.flatnonzero(np.isfinite(jacobian).all(axis=(1, 2))):
-        pinv = setup.law.pseudo_inverse(jacobian[i])[0]
-        inputs[i] = v[i] + pinv @ (object_jacobian[i] @ derived["target_velocity"][i])
-    return {"nu_true": nu, "storage_true": storage, "passivity_input_true": inputs}
 
 
 def _slip(

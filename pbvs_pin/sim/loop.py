@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pbvs_pin.camera_frame import CameraFrame
-from pbvs_pin.compile_cache import compile_notice
+from pbvs_pin.compile_cache import announce_compiles
 from pbvs_pin.control.tracking import TargetTracker
 from pbvs_pin.exceptions import RunInterrupted
 from pbvs_pin.robot import MobileManipulator
@@ -31,6 +31,7 @@ from pbvs_pin.sim.scenario import Scenario
 from pbvs_pin.sim.sensing import Sensing
 from pbvs_pin.sim.setup import Setup, build
 from pbvs_pin.sim.vision import Frame
+from pbvs_pin.validation import as_instance
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from pbvs_pin.sim.detection import CameraImage
@@ -69,9 +70,8 @@ def simulate(
 ) -> RunLog:
     """Run one scenario and return its log.
 
-    With ``progress``, a bar labelled with the scenario, robot and law goes to stderr, preceded
-    by one line (:func:`pbvs_pin.compile_cache.compile_notice`) when the control kernels are not
-    compiled yet.
+    With ``progress``, a bar labelled with the scenario, robot and law goes to stderr, with one
+    line (:func:`pbvs_pin.compile_cache.announce_compiles`) when a control kernel compiles.
 
     Args:
         scenario: A validated scenario.
@@ -84,11 +84,24 @@ def simulate(
         The run's log (arrays at the log rate) with its setup's key facts.
 
     Raises:
+        WrongType: If ``scenario`` is not a Scenario (e.g. a name: use ``load_scenario``), or
+            ``robot`` not a MobileManipulator.
         RunInterrupted: On Ctrl-C; it carries the run so far, its ``meta["interrupted"]``
             true (None when nothing was recorded yet).
     """
-    if progress:
-        compile_notice()
+    scenario = as_instance("scenario", scenario, Scenario)
+    robot = None if robot is None else as_instance("robot", robot, MobileManipulator)
+    with announce_compiles(progress):
+        return _simulate(scenario, progress, observer, robot)
+
+
+def _simulate(
+    scenario: Scenario,
+    progress: bool,
+    observer: Callable[[Snapshot], None] | None,
+    robot: MobileManipulator | None,
+) -> RunLog:
+    """:func:`simulate`'s run (the same arguments)."""
     setup = build(scenario, robot)
     plant_dt = scenario.simulation.plant_dt
     substeps = max(1, round(1.0 / (scenario.controller.rate * plant_dt)))

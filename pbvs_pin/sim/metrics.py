@@ -5,15 +5,17 @@ them (:func:`summarize`):
 
 - **target lost**: samples with ``target_lost`` set, and the first such time;
 - **joints past limits**: the largest excursion of an arm joint beyond its position limits
-  (``meta["arm_position_limits"]``) [rad or m], 0 when none;
+  (``meta["arm_position_limits"]``) [rad or m], 0 when none (a continuous joint has none);
 - **collision**: the smallest platform clearance < 0;
 - **sustained oscillation**: the part of the true feature error above
   :data:`OSCILLATION_CUTOFF_HZ`, RMS over the worst :data:`FINAL_WINDOW`-long window after
   the transient (:func:`oscillation_rms`);
 - **detection** (a rendered camera): frames in which the target projects inside the image
   but is not detected, and the detection error (detected minus projected) RMS and maximum;
-- **saturation**: the fraction of samples in which the controller scaled ``u`` down to the
-  velocity limits, and the fraction in which some ``v_ref`` component sits at its limit.
+- **saturation**: the fraction of samples in which the velocity limits cut the command (the
+  law scaled ``u`` down, or the compensator clipped ``v_ref``:
+  :func:`pbvs_pin.sim.log.command_limited`), and the fraction in which some ``v_ref``
+  component sits at its limit.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from pbvs_pin.sim.log import RunLog
+from pbvs_pin.sim.log import AT_LIMIT, RunLog
 
 FINAL_WINDOW = 5.0
 """Length [s] of the window at the end of a run over which the final error is taken."""
@@ -37,10 +39,6 @@ OSCILLATION_CUTOFF_HZ = 0.5
 OSCILLATION_FLAG_PX = 2.0
 """Oscillation RMS [px] above which a run is flagged as oscillating."""
 
-AT_LIMIT = 1.0 - 1e-6
-"""A velocity counts as at its limit from this fraction of the limit on."""
-
-
 def summarize(log: RunLog) -> dict[str, Any]:
     """Acceptance figures and flags of one run (pixels, metres, radians, seconds).
 
@@ -48,7 +46,9 @@ def summarize(log: RunLog) -> dict[str, Any]:
         JSON-serialisable figures: the largest absolute feature error over the final window
         and after the transient, the final error, its RMS after the transient, the smallest
         platform clearance, the arm's distance from the maximum-manipulability posture over
-        the final window, the storage function's increase and decrease after the transient,
+        the final window, the frames the innovation gate rejected and the estimator's
+        restarts (:class:`pbvs_pin.control.gating.FaultCounts`; None for a log without them),
+        the storage function's increase and decrease after the transient,
         the velocity-tracking error ``|v - u|`` (RMS of the Euclidean norm in SI units, and
         per platform/arm part), the odometry drift at the end and the platform's slip
         (:func:`pbvs_pin.sim.log.sensing_meta`; None for a log without them), and the flags
@@ -67,6 +67,7 @@ def summarize(log: RunLog) -> dict[str, Any]:
     n_base = len(log["v"][0]) - len(posture)
     limits = np.asarray(log.meta["velocity_limits"], dtype=float)
     drift, slip = log.meta.get("odometry_drift", {}), log.meta.get("slip", {})
+    counts = log.meta.get("controller_counts", {})  # control.gating.FaultCounts
     return {
         "scenario": log.meta["scenario"],
         "robot": log.meta["robot"],
@@ -80,7 +81,9 @@ def summarize(log: RunLog) -> dict[str, Any]:
         "rms_error_after_transient_px": _rms(np.linalg.norm(error[after], axis=1)),
         "final_abs_error_px": np.abs(error[-1]).round(3).tolist(),
         "min_clearance_m": _min(log["clearance"]),
-        "posture_error_final_window_rad": _max(log["arm"][final] - posture),
+        "posture_error_final_window_rad": _max(
+            posture_error(log["arm"][final], posture, log.meta.get("arm_continuous"))
+        ),
         "storage_increase_after_transient": float(np.sum(np.maximum(increases, 0.0))),
         "storage_decrease_after_transient": float(-np.sum(np.minimum(increases, 0.0))),
         "velocity_tracking_rms": _rms(np.linalg.norm(tracking, axis=1)),
@@ -93,6 +96,8 @@ def summarize(log: RunLog) -> dict[str, Any]:
         "damped_fraction": float(np.mean(log["damped"])),
         "target_lost_samples": int(np.sum(lost)),
         "target_lost_first_s": float(t[np.argmax(lost)]) if lost.any() else None,
+        "frames_gated": counts.get("frames_gated"),
+        "estimator_restarts": counts.get("restarts"),
         "joint_limit_violation": joint_limit_violation(log),
         "oscillation_rms_px": oscillation,
         "oscillation_window_start_s": window_start,
@@ -183,6 +188,30 @@ def oscillation_rms(t: np.ndarray, error: np.ndarray) -> tuple[float, float | No
     power = np.convolve(np.sum(high**2, axis=1), np.ones(width) / width, mode="valid")
     worst = int(np.argmax(power))
     return float(np.sqrt(power[worst])), float(times[worst])
+
+
+def posture_error(
+    arm: np.ndarray, posture: np.ndarray, continuous: list[bool] | None
+) -> np.ndarray:
+    """The arm's distance from ``posture`` per sample and joint [rad or m].
+
+    A continuous joint's is the shortest way round, in ``[-pi, pi)``
+    (:func:`pbvs_pin.joint_angles.arm_difference`): an angle and the same angle plus ``2 pi`` are
+    one posture.
+
+    Args:
+        arm: Arm positions. Shape (T, n_arm).
+        posture: The posture target. Shape (n_arm,).
+        continuous: Whether each joint is continuous (``meta["arm_continuous"]``); None
+            (a log written before it was recorded): none is.
+
+    Returns:
+        Shape (T, n_arm).
+    """
+    error = np.asarray(arm, dtype=float) - posture
+    wrapped = np.zeros(error.shape[1], dtype=bool) if continuous is None else np.array(continuous)
+    error[:, wrapped] = np.mod(error[:, wrapped] + np.pi, 2.0 * np.pi) - np.pi
+    return error
 
 
 def joint_limit_violation(log: RunLog) -> float | None:

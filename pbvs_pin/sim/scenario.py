@@ -14,9 +14,9 @@ overrides dotted fields of :meth:`Scenario.to_toml` and parses again.
 
 from __future__ import annotations
 
-import tomllib
+import json
 from collections.abc import Mapping
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -41,7 +41,7 @@ from pbvs_pin.sim.sections import (
     SimulationSection,
     TargetSection,
 )
-from pbvs_pin.validation import as_path
+from pbvs_pin.validation import as_path, read_toml
 
 OBSTACLE_KINDS: dict[str, type[CircleObstacle | BoxObstacle]] = {
     "circle": CircleObstacle,
@@ -117,6 +117,9 @@ class Scenario(Section):
     def with_values(self, **changes: Any) -> Scenario:
         """Copy with dotted fields replaced, e.g. ``with_values(**{"robot.name": "tiago"})``.
 
+        A ``[robot]`` read from a robot file of its own (``run --robot FILE``) keeps naming
+        that file in its messages unless a ``robot.`` key changes.
+
         Raises:
             ScenarioError: If a field is unknown or its value is invalid.
         """
@@ -127,7 +130,10 @@ class Scenario(Section):
             if not isinstance(table, dict) or section == "obstacles":
                 raise self.error(section, f"unknown section; expected one of {_sections()}")
             table[name] = value
-        return parse_scenario(raw, self.source)
+        changed = parse_scenario(raw, self.source)
+        if self.robot.source == self.source or any(d.startswith("robot.") for d in changes):
+            return changed
+        return replace(changed, robot=self.robot)
 
 
 SCHEMA: dict[str, dict[str, Any]] = {
@@ -135,6 +141,17 @@ SCHEMA: dict[str, dict[str, Any]] = {
     **{s.TABLE: {spec.name: spec.default for spec in keys_of(s)} for s in SECTIONS},
 }
 """Every section and key with its default (from the sections' fields). The root is ``""``."""
+
+
+def key_lines() -> list[str]:
+    """Every scenario key as ``dotted.name = default  # meaning`` (default as JSON)."""
+    lines = []
+    for section in (Scenario, *SECTIONS):
+        for spec in keys_of(section):
+            name = f"{section.TABLE}.{spec.name}" if section.TABLE else spec.name
+            default = list(spec.default) if isinstance(spec.default, tuple) else spec.default
+            lines.append(f"{name} = {json.dumps(default)}  # {spec.metadata['doc']}")
+    return lines
 
 
 def obstacle_table(obstacle: CircleObstacle | BoxObstacle) -> dict[str, Any]:
@@ -170,14 +187,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
                 + ", ".join(shipped_scenarios()),
             )
         path = shipped
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError as err:
-        raise ScenarioError(str(path), "", f"not UTF-8 text (expected a TOML file): {err}") from err
-    except OSError as err:
-        raise ScenarioError(str(path), "", f"cannot be read: {err.strerror}") from err
-    except tomllib.TOMLDecodeError as err:
-        raise ScenarioError(str(path), "", f"not valid TOML: {err}") from err
+    raw = read_toml(path, "a scenario")
     if not raw:
         raise ScenarioError(
             str(path),

@@ -15,10 +15,11 @@ from typing import Any, ClassVar, Self
 
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import REFERENCE_ROBOT
-from pbvs_pin.control.kinematic import ServoGains
+from pbvs_pin.control.kinematic import FEEDBACK_LAWS, ServoGains
 from pbvs_pin.control.upright import LOOP_GAIN_MARGIN, RESTORING_RATE
-from pbvs_pin.estimation import AlphaBetaFilter
+from pbvs_pin.estimation import NOISE_ADAPTIVE, velocity_filter
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.platform_frame import FORWARD_AXES
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.robot_spec import build_robot_from, check_forms, forms_given, is_path
 from pbvs_pin.sim.keys import (
@@ -86,10 +87,24 @@ class RobotSection(Section):
         None, "Omnidirectional drive: largest omega [rad/s]; 1.0 if absent.", sign=POSITIVE,
         optional=float,
     )  # fmt: skip
-    arm_root: str = key("", "First link of the arm URDF mounted (at mount); its root if absent.")
+    base_joints: tuple[str, ...] | None = key(
+        None, "Joints of the urdf (or base) that model the base's motion (x, y and yaw "
+        "joints, a planar or a floating joint), fixed at zero so that the drive moves the "
+        "platform; recognised automatically if absent; [] for none.", names=True,
+    )  # fmt: skip
+    forward_axis: str = key(
+        "x", "The axis of the platform URDF's root link the platform drives along.",
+        choices=tuple(FORWARD_AXES),
+    )  # fmt: skip
+    arm_root: str = key(
+        "", "First link of the arm: of the arm URDF mounted (at mount), or of the urdf or base "
+        "that carries its arm; the URDF's root if absent.",
+    )  # fmt: skip
     arm_tip: str = key(
-        "", "Last link of the arm URDF mounted; with arm_root or alone, only the chain between "
-        "them is kept (camera_link if absent); the whole arm URDF if both are absent.",
+        "", "Last link of the arm (camera_link or camera_frame if absent); with arm_root or "
+        "alone, the arm is the chain between them: only it is mounted of an arm URDF, and "
+        "a URDF carrying its arm has every movable joint off it locked. Both absent: the "
+        "whole arm URDF; every joint moving the camera.",
     )  # fmt: skip
     repair_inertia: bool = key(
         False, "Replace inertias breaking I1 + I2 >= I3 by their mean principal moment "
@@ -336,19 +351,16 @@ class EstimatorSection(Section):
     )
     alpha: float = key(0.5, "Position gain of the alpha-beta filter, 0 < alpha <= 1.")
     beta: float = key(0.1, "Velocity gain of the alpha-beta filter, 0 < beta < 4 - 2 alpha.")
+    process_noise: float = key(0.0, NOISE_ADAPTIVE, sign=NON_NEGATIVE)
     predict: bool = key(False, "Bring each frame up to now along eq. (3) (control.tracking).")
     hold: float = key(0.0, "Servo on predictions this long after a loss [s].", sign=NON_NEGATIVE)
     smoothing: float = key(1.0, "Weight of a frame against its prediction, <= 1.", sign=POSITIVE)
-
-    def filter(self) -> AlphaBetaFilter:
-        """A fresh alpha-beta filter with these gains."""
-        return AlphaBetaFilter(self.alpha, self.beta)
 
     def validate(self) -> None:
         """Stable filter gains (GainError naming alpha or beta), smoothing <= 1."""
         if self.smoothing > 1:
             raise GainError(f"expected <= 1, got {self.smoothing:g}", "smoothing")
-        self.filter()
+        velocity_filter(self.alpha, self.beta, self.process_noise)
 
 
 @dataclass(frozen=True)
@@ -379,8 +391,10 @@ class ControllerSection(Section):
     )
     feedback: str = key(
         "transpose",
-        "transpose (-J^T K_c e, the paper's) or pseudoinverse (-J# K_c e).",
-        choices=("transpose", "pseudoinverse"),
+        "transpose (-J^T K_c e, the paper's), pseudoinverse (-J# K_c e) or balanced (every "
+        "direction of J J^T at the loop-gain margin per camera sample, in velocity-limit units, "
+        "joints at their stops left out; pbvs_pin.control.kinematic.balanced_feedback).",
+        choices=FEEDBACK_LAWS,
     )
     ibvs_gain: float = key(0.5, "lambda of the classic IBVS law [1/s].", sign=POSITIVE)
     rate: float = key(100.0, "Control rate [Hz].", sign=POSITIVE)
@@ -411,7 +425,7 @@ class ControllerSection(Section):
             k2=self.k2,
             feature_scale=self.feature_scale,
             weights=self.weights,
-            use_pseudoinverse_feedback=self.feedback == "pseudoinverse",
+            feedback=self.feedback,
             upright=self.upright,
             upright_rate=self.upright_rate,
             loop_gain_margin=self.loop_gain_margin,

@@ -51,8 +51,8 @@ import numpy as np
 from numba import njit
 
 from pbvs_pin.base import DifferentialDrive, unicycle_twist
+from pbvs_pin.joint_angles import arm_angles
 from pbvs_pin.odometry import WheelOdometry, odometry_update, read_counts
-from pbvs_pin.robot import arm_angles
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -207,12 +207,19 @@ class Sensing:
 
     def laser_reading(self) -> tuple[float, float]:
         """``(d, alpha)`` of a scan from the true laser frame (or the base), with its noise."""
+        return self.laser.nearest(self.laser_ranges())
+
+    def laser_ranges(self) -> np.ndarray:
+        """A scan's ranges [m] from the true laser frame (or the base), with their noise.
+
+        Returns:
+            Shape (beams,), counter-clockwise (:meth:`pbvs_pin.sim.obstacles.Laser.angles`).
+        """
         robot, q = self.robot, self.plant.q
         pose = robot.frame_pose(q, self._laser_frame) if self._laser_frame else robot.base_pose(q)
         yaw = float(np.arctan2(pose.rotation[1, 0], pose.rotation[0, 0]))
         x, y = pose.translation[:2]
-        ranges = self.laser.scan(self.obstacles, x, y, yaw, self.laser_rng)
-        return self.laser.nearest(ranges)
+        return self.laser.scan(self.obstacles, x, y, yaw, self.laser_rng)
 
 
 @njit(cache=True, inline="always")

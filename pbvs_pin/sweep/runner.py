@@ -175,7 +175,7 @@ def analysis_columns(result: dict[str, Any]) -> dict[str, Any]:
         "passivity9_lhs": p9["lhs_integral_nu_input"],
         "passivity9_rhs": p9["rhs_minus_V1_0"],
         "passivity9_holds": p9["holds"],
-        "passivity14_lhs": p14["lhs_integral_nu_sq"],
+        "passivity14_lhs": p14["lhs_integral_nu_feedback"],
         "passivity14_rhs": p14["rhs_beta"],
         "passivity14_holds": p14["holds"],
     }

@@ -45,7 +45,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,6 +53,7 @@ from typing import Any
 from pbvs_pin.exceptions import ScenarioError
 from pbvs_pin.sim.scenario import Scenario, load_scenario
 from pbvs_pin.sweep.sampling import check_field, flatten, grid_runs, random_runs
+from pbvs_pin.validation import as_path, read_toml
 
 SWEEP_DEFAULTS: dict[str, Any] = {
     "name": "",
@@ -181,7 +181,7 @@ def load_sweep(name_or_path: str | Path) -> SweepSpec:
         ScenarioError: Missing file, malformed TOML, unknown section, key or scenario field,
             or an invalid value; the message names the spec file and the field.
     """
-    path = Path(name_or_path)
+    path = as_path("name_or_path", name_or_path)
     if not path.is_file():
         shipped = sweep_dir() / f"{name_or_path}.toml"
         if not shipped.is_file():
@@ -193,10 +193,7 @@ def load_sweep(name_or_path: str | Path) -> SweepSpec:
             )
         path = shipped
     source = str(path)
-    try:
-        raw = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as err:
-        raise ScenarioError(source, "", f"not valid TOML: {err}") from err
+    raw = read_toml(path, "a sweep spec")
     unknown = set(raw) - {"sweep", "fixed", "grid", "random"}
     if unknown:
         raise ScenarioError(

@@ -97,7 +97,7 @@ def true_image_points(robot: MobileManipulator, q: np.ndarray, centres: np.ndarr
 
 
 EYE_VIEW_SCRIPT = """<img id="eye-view" alt="robot's-eye view"
- style="position:fixed;right:8px;bottom:8px;border:2px solid #444;z-index:10">
+ style="position:fixed;right:8px;bottom:54px;border:2px solid #444;z-index:10">
 <script>
 (function () {
   // The robot's-eye view beside the scene: the image of the replay's current key.
@@ -115,7 +115,9 @@ EYE_VIEW_SCRIPT = """<img id="eye-view" alt="robot's-eye view"
 })();
 </script>"""
 """Panel and script appended to a replay with the robot's-eye view: a JPEG per key, shown at
-the animation's time (the key nearest to it)."""
+the animation's time (the key nearest to it), in the lower right corner above the overlay's
+46 px bar of play button, time slider and readout (:mod:`pbvs_pin.viz.replay_page`), which it
+would otherwise cover."""
 
 
 def write_run_replay(
