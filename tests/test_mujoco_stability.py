@@ -21,6 +21,7 @@ from pbvs_pin.exceptions import PbvsWarning
 from pbvs_pin.home import HomeCriteria, compute_home
 from pbvs_pin.mujoco_plant import MujocoPlant
 from pbvs_pin.mujoco_stability import convex_hull, polygon_margin, support_margin
+from pbvs_pin.mujoco_support import centre_of_mass_margins, support_polygon
 from pbvs_pin.servo import ServoModel
 from pbvs_pin.sim.sections import RobotSection
 from pbvs_pin.zoo import load_zoo
@@ -152,3 +153,20 @@ def test_a_home_that_does_not_tip_is_kept_as_found():
         robot.model, robot.data, robot.with_arm_positions(robot.neutral(), free)
     )
     assert centre[0] < PIONEER_HALF_WHEELBASE - COM_MARGIN  # it does not tip
+
+
+def test_centre_of_mass_margins_agree_with_the_mujoco_plant_at_each_posture():
+    """Pinocchio's centre of mass against MuJoCo's ``subtree_com``, in the same support."""
+    robot = load_robot("pioneer_ur5")
+    rng = np.random.default_rng(0)
+    arms = robot.home_arm + np.vstack([np.zeros(robot.n_arm), rng.normal(0, 0.3, (2, robot.n_arm))])
+    margins = centre_of_mass_margins(robot, arms, support_polygon(robot))
+    for arm, margin in zip(arms, margins, strict=True):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PbvsWarning)  # a posture may tip it
+            plant = MujocoPlant(
+                robot, ServoModel.from_robot(robot), robot.with_arm_positions(robot.neutral(), arm)
+            )
+        assert margin == pytest.approx(support_margin(plant.data), abs=1e-4)
+    assert margins[0] >= COM_MARGIN - 1e-3  # the home keeps the margin
+    assert len(set(np.round(margins, 3))) == 3  # the postures differ
