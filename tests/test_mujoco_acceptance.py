@@ -94,7 +94,7 @@ def test_the_mujoco_plant_holds_the_target(summaries, robot, name):
 
 
 @pytest.mark.parametrize(("robot", "name"), sorted(TIPS))
-def test_the_arm_carries_the_centre_of_mass_past_the_wheels_and_the_robot_tips(runs, robot, name):
+def test_the_arm_carries_the_centre_of_mass_to_the_wheels_and_the_robot_tips(runs, robot, name):
     """Starts with the home's margin, keeps the target while the margin lasts, tips at the edge."""
     summary, (t, margin) = runs[(robot, name)]
     assert margin[0] >= HomeCriteria().com_margin - 1e-3, margin[0]
