@@ -4,7 +4,9 @@ Each entry says how to build the robot and gives a *home* posture of its arm in 
 camera looks horizontally forward (optical z along the platform's x, image upright). The homes
 are :func:`pbvs_pin.home.compute_home` with its default criteria, rounded to 1e-4 rad (or m):
 camera 0.5-1.0 m above the floor, 0.3-0.7 m ahead, each joint at least 10% of its range from
-its limits, largest manipulability; ``tests/test_home.py`` checks them against the criteria.
+its limits, largest manipulability, and the centre of mass 0.05 m inside the wheels' support
+where the home found without it would tip the platform (UR5, Panda); ``tests/test_home.py``
+checks them against the criteria.
 The reference robot's home is all zeros, as in the paper's experiments, which is also what
 compute_home gives for it.
 """
@@ -56,14 +58,14 @@ class Recipe:
 
 RECIPES = {
     "pioneer_ur5": Recipe(
-        "pioneer3at", "ur5", "tool0", (0,) * 6, (-2.9485, -1.8797, -1.5422, 0.2803, 1.3777, 0.0)
+        "pioneer3at", "ur5", "tool0", (0,) * 6, (-2.7799, -1.2665, -1.7208, -0.1543, 1.2091, 0.0)
     ),
     "pioneer_panda": Recipe(
         "pioneer3at",
         "panda",
         "panda_hand_tcp",
         (0,) * 6,
-        (-1.9003, -1.4102, 0.8454, -1.9898, 2.2748, 2.0776, 1.4413),
+        (0.1137, -0.8764, 0.0898, -2.2966, 2.3178, 3.3755, 0.0946),
     ),
     "pioneer_z1": Recipe(
         "pioneer3at", "z1", "link06", OPTICAL_FROM_BODY, (0.0, 2.3915, -1.615, -0.7765, 0.0, 0.0)

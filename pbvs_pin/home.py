@@ -41,6 +41,16 @@ gets the best feasible posture of step 1; :func:`assess_home` reports its residu
 the optical axis cannot be brought within ``max_forward_error`` of the platform's x axis,
 :class:`~pbvs_pin.exceptions.HomeNotFound` is raised.
 
+A platform that stands on wheels must not tip over at home (the MuJoCo plant's robot can;
+the Pinocchio plant's planar base cannot). If the posture found puts the whole robot's centre
+of mass (Pinocchio's, ``pin.centerOfMass``) outside the platform's support polygon (the convex
+hull of its floor contacts on the MuJoCo plant,
+:func:`pbvs_pin.mujoco_support.support_polygon`), steps 1 and 2 run again with the rows
+:math:`s_i = n_i^\top (c_{xy} - v_i) - \text{com\_margin} \ge 0` (``n_i`` the inward
+normals of the polygon's edges through its vertices ``v_i``): a residual
+:math:`[-s_i]_+` (weight 1 rad/m) in step 1, an inequality in step 2. A posture that does not
+tip is returned as found.
+
 The result is deterministic and depends on the model only: the starts are the zero posture
 (clipped to the bounds), the middle of the bounds, and ``starts`` postures drawn with
 ``numpy.random.default_rng(seed)``.
@@ -83,6 +93,10 @@ LOCKED_WIDTH = 1e-9
 _KEEP = 1e-5
 """How much [rad or m] step 2 may lose on step 1's orientation error and band violation."""
 
+_BALANCE_WEIGHT = 1.0
+"""Weight [rad/m] of the centre of mass's shortfall in step 1 (:class:`_Balance`): as much as
+the orientation, since a home that tips the platform is no home."""
+
 
 @dataclass(frozen=True)
 class HomeCriteria:
@@ -102,6 +116,9 @@ class HomeCriteria:
             step 2's cost, against ``-log`` of the manipulability.
         max_forward_error: Largest angle [rad] between the optical axis and the platform's x
             axis before :func:`compute_home` gives up (10 deg).
+        com_margin: Least distance [m] the centre of mass keeps inside the platform's support
+            polygon when the home found without it would tip the platform (a home that does
+            not tip is kept as found); None: tipping is not considered.
     """
 
     min_height: float = 0.5
@@ -112,10 +129,18 @@ class HomeCriteria:
     limit_margin: float = 0.1
     posture_weight: float = 0.2
     max_forward_error: float = np.radians(10.0)
+    com_margin: float | None = 0.05
 
     def __post_init__(self) -> None:
-        """Reject an empty band, a non-positive tolerance, a margin outside [0, 0.5)."""
-        convert_fields(self, tuple(field.name for field in fields(self)))
+        """Reject an empty band, a non-positive tolerance, a margin outside [0, 0.5) or < 0."""
+        given = (field.name for field in fields(self))
+        convert_fields(self, tuple(name for name in given if getattr(self, name) is not None))
+        if self.com_margin is not None:
+            if not (np.isfinite(self.com_margin) and self.com_margin >= 0.0):
+                raise GainError(
+                    f"HomeCriteria.com_margin: expected >= 0 m or None, got {self.com_margin}",
+                    "com_margin",
+                )
         for low, high in (("min_height", "max_height"), ("min_ahead", "max_ahead")):
             if not getattr(self, high) > getattr(self, low):
                 raise GainError(
@@ -209,13 +234,61 @@ def assess_home(robot: MobileManipulator, arm: npt.ArrayLike) -> HomeAssessment:
     )
 
 
+class _Balance:
+    r"""The centre of mass kept ``margin`` inside a convex support polygon, platform at the origin.
+
+    Rows :math:`s_i(\theta) = n_i^\top (c_{xy}(\theta) - v_i) - \text{margin} \ge 0`, with
+    ``v_i`` the polygon's vertices (counter-clockwise), ``n_i`` its edges' inward unit normals
+    and ``c`` Pinocchio's centre of mass of the whole robot (``pin.centerOfMass``), whose
+    Jacobian ``pin.jacobianCenterOfMass`` gives :math:`\partial s / \partial \theta`.
+    """
+
+    def __init__(self, robot: MobileManipulator, vertices: np.ndarray, margin: float) -> None:
+        self.robot, self.margin = robot, margin
+        edges = np.roll(vertices, -1, axis=0) - vertices
+        normals = np.stack([-edges[:, 1], edges[:, 0]], axis=1)
+        self.normals = normals / np.linalg.norm(normals, axis=1)[:, None]
+        self.offsets = np.sum(self.normals * vertices, axis=1) + margin
+        self.arm_columns = robot.selection[:, robot.n_base :]
+
+    def slack(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rows ``s`` [m], shape (k,), and their Jacobian in the arm joints, shape (k, n_arm)."""
+        robot = self.robot
+        jacobian = pin.jacobianCenterOfMass(robot.model, robot.data, q)
+        centre = robot.data.com[0][:2]
+        return self.normals @ centre - self.offsets, self.normals @ (
+            jacobian[:2] @ self.arm_columns
+        )
+
+    def shortfall(self, q: np.ndarray) -> float:
+        """How far [m] the centre of mass lacks the margin (0 when it keeps it)."""
+        return max(0.0, -float(np.min(self.slack(q)[0])))
+
+
 class _Kinematics:
-    """Camera pose and arm Jacobian at an arm posture, platform at the origin (cached)."""
+    """Camera pose and arm Jacobian at an arm posture, platform at the origin (cached).
+
+    Attributes:
+        balance: The centre-of-mass rows both steps keep, or None.
+    """
 
     def __init__(self, robot: MobileManipulator) -> None:
         self.robot = robot
         self.base_q = robot.neutral()
         self._arm: np.ndarray | None = None
+        self.balance: _Balance | None = None
+
+    def shortfall(self, arm: np.ndarray) -> float:
+        """:meth:`_Balance.shortfall` at ``arm`` (0 without balance)."""
+        if self.balance is None:
+            return 0.0
+        return self.balance.shortfall(self.robot.with_arm_positions(self.base_q, arm))
+
+    def balance_rows(self, arm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_Balance.slack` at ``arm``; shapes (0,) and (0, n_arm) without balance."""
+        if self.balance is None:
+            return np.zeros(0), np.zeros((0, len(arm)))
+        return self.balance.slack(self.robot.with_arm_positions(self.base_q, arm))
 
     def at(self, arm: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Rotation (3, 3), position (3,), ``dp/dtheta`` (3, n_arm), ``J_w`` LOCAL (3, n_arm)."""
@@ -273,12 +346,21 @@ def _stage_one(
 
     def residual(arm: np.ndarray) -> np.ndarray:
         error, slack, _, _ = parts(arm)
-        return np.concatenate([pin.log3(error), _BAND_WEIGHT * np.maximum(0.0, -slack)])
+        balance = kinematics.balance_rows(arm)[0]
+        return np.concatenate(
+            [
+                pin.log3(error),
+                _BAND_WEIGHT * np.maximum(0.0, -slack),
+                _BALANCE_WEIGHT * np.maximum(0.0, -balance),
+            ]
+        )
 
     def jacobian(arm: np.ndarray) -> np.ndarray:
         error, slack, d_slack, jw = parts(arm)
         d_band = np.where((slack < 0.0)[:, None], -_BAND_WEIGHT * d_slack, 0.0)
-        return np.vstack([pin.Jlog3(error) @ jw, d_band])
+        balance, d_balance = kinematics.balance_rows(arm)
+        d_balance = np.where((balance < 0.0)[:, None], -_BALANCE_WEIGHT * d_balance, 0.0)
+        return np.vstack([pin.Jlog3(error) @ jw, d_band, d_balance])
 
     return least_squares(
         residual, start, jac=jacobian, bounds=bounds, method="dogbox", max_nfev=_MAX_EVALUATIONS
@@ -292,6 +374,7 @@ def _stage_two(
     bounds: tuple[np.ndarray, np.ndarray],
     box: tuple[np.ndarray, np.ndarray],
     reached: HomeAssessment,
+    shortfall: float = 0.0,
 ) -> tuple[np.ndarray, float]:
     """Step 2 from a step-1 posture: best-conditioned posture keeping what step 1 reached.
 
@@ -305,6 +388,8 @@ def _stage_two(
             scale the posture weight. Shapes (n_arm,).
         reached: Assessment of the best step-1 posture: its orientation error and band
             violation (plus ``_KEEP``) bound those of the result.
+        shortfall: The best step-1 posture's shortfall [m] from the centre-of-mass margin
+            (:class:`_Balance`; plus ``_KEEP``, it bounds the result's).
 
     Returns:
         The posture, shape (n_arm,), and its cost; cost ``inf`` if it breaks the constraints.
@@ -337,15 +422,24 @@ def _stage_two(
         posture = criteria.posture_weight * np.sum(((arm - middle) / span) ** 2)
         return posture - np.log(arm_manipulability(robot, q) + 1e-12)
 
+    constraints = [
+        {"type": "ineq", "fun": orientation, "jac": orientation_jacobian},
+        {"type": "ineq", "fun": band, "jac": band_jacobian},
+    ]
+    if kinematics.balance is not None:
+        constraints.append(
+            {
+                "type": "ineq",
+                "fun": lambda arm: kinematics.balance_rows(arm)[0] + shortfall + _KEEP,
+                "jac": lambda arm: kinematics.balance_rows(arm)[1],
+            }
+        )
     result = minimize(
         cost,
         start,
         method="SLSQP",
         bounds=list(zip(*bounds, strict=True)),
-        constraints=[
-            {"type": "ineq", "fun": orientation, "jac": orientation_jacobian},
-            {"type": "ineq", "fun": band, "jac": band_jacobian},
-        ],
+        constraints=constraints,
         options={"maxiter": _MAX_ITERATIONS, "ftol": 1e-10},
     )
     arm = _stage_one(kinematics, criteria, np.clip(result.x, *bounds), bounds)
@@ -353,6 +447,7 @@ def _stage_two(
     kept = (
         found.orientation_error <= reached.orientation_error + _KEEP
         and found.band_violation(criteria) <= reached.band_violation(criteria) + _KEEP
+        and kinematics.shortfall(arm) <= shortfall + _KEEP
     )
     return arm, (cost(arm) if kept else np.inf)
 
@@ -363,6 +458,7 @@ def compute_home(
     starts: int = 8,
     refine: int = 3,
     seed: int = 0,
+    support: npt.ArrayLike | None = None,
 ) -> np.ndarray:
     """Arm posture in which the camera looks horizontally forward, image upright.
 
@@ -375,6 +471,12 @@ def compute_home(
             to the bounds) and the middle of the bounds.
         refine: Number of the best step-1 postures from which step 2 starts.
         seed: Seed of the random starting postures.
+        support: Points [m] in the platform frame whose convex hull is the platform's
+            support, shape (m, 2); None: the MuJoCo plant's floor contacts
+            (:func:`pbvs_pin.mujoco_support.support_polygon`). A hull of fewer than three
+            vertices, or ``criteria.com_margin`` None: tipping is not considered. If the
+            camera cannot look forward with the centre of mass kept inside, the home found
+            without it is returned (the MuJoCo plant warns that it tips).
 
     Returns:
         ``theta_h`` [rad or m], at least ``limit_margin`` of its range from each limit; a
@@ -401,15 +503,60 @@ def compute_home(
     rng = np.random.default_rng(seed)
     guesses = [np.clip(np.zeros(robot.n_arm), *box), 0.5 * (box[0] + box[1])]
     guesses += [rng.uniform(*box) for _ in range(starts)]
+    solve = (kinematics, criteria, guesses, (bounds, box), refine)
+    arm = _solve(*solve)
+    if criteria.com_margin is None:
+        return _finish(robot, arm, locked, lower)
+    from pbvs_pin.mujoco_stability import convex_hull
+    from pbvs_pin.mujoco_support import support_polygon
+
+    support = support_polygon(robot) if support is None else convex_hull(support)
+    if support is None or len(support) < 3:  # nothing to stand on, or no inside
+        return _finish(robot, arm, locked, lower)
+    kinematics.balance = _Balance(robot, support, 0.0)
+    if kinematics.shortfall(arm) == 0.0:  # it does not tip: kept as found
+        return _finish(robot, arm, locked, lower)
+    kinematics.balance = _Balance(robot, support, criteria.com_margin)
+    try:
+        arm = _solve(*solve)
+    except HomeNotFound:  # balanced, the camera cannot look forward: the plant will warn
+        pass
+    return _finish(robot, arm, locked, lower)
+
+
+def _finish(
+    robot: MobileManipulator, arm: np.ndarray, locked: np.ndarray, lower: np.ndarray
+) -> np.ndarray:
+    """A solved posture with its locked joints at their value, continuous ones in [-pi, pi)."""
+    arm = np.where(locked, lower, arm)
+    return arm_difference(arm, np.zeros(robot.n_arm), robot.arm_continuous)
+
+
+def _solve(
+    kinematics: _Kinematics,
+    criteria: HomeCriteria,
+    guesses: list[np.ndarray],
+    limits: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+    refine: int,
+) -> np.ndarray:
+    """Steps 1 and 2 from every guess: the best posture (see :func:`compute_home`).
+
+    ``limits`` is ``(bounds, box)`` as :func:`_stage_two` takes them.
+    """
+    robot = kinematics.robot
+    bounds, box = limits
     candidates = [_stage_one(kinematics, criteria, g, bounds) for g in guesses]
     assessed = [assess_home(robot, arm) for arm in candidates]
+    shortfalls = [kinematics.shortfall(arm) for arm in candidates]
     ranks = sorted(
         range(len(candidates)),
         key=lambda i: (
-            assessed[i].orientation_error + _BAND_WEIGHT * assessed[i].band_violation(criteria)
+            assessed[i].orientation_error
+            + _BAND_WEIGHT * assessed[i].band_violation(criteria)
+            + _BALANCE_WEIGHT * shortfalls[i]
         ),
     )
-    best = assessed[ranks[0]]
+    best, least = assessed[ranks[0]], shortfalls[ranks[0]]
     if best.forward_error > criteria.max_forward_error:
         raise HomeNotFound(robot.source, np.degrees(best.forward_error), criteria)
     feasible = [
@@ -417,12 +564,11 @@ def compute_home(
         for i in ranks
         if assessed[i].orientation_error <= best.orientation_error + _KEEP
         and assessed[i].band_violation(criteria) <= best.band_violation(criteria) + _KEEP
+        and shortfalls[i] <= least + _KEEP
     ]
     refined = [
-        _stage_two(kinematics, criteria, candidates[i], bounds, box, best)
+        _stage_two(kinematics, criteria, candidates[i], bounds, box, best, least)
         for i in feasible[:refine]
     ]
     arm, value = min(refined, key=lambda pair: pair[1])
-    arm = np.asarray(arm if np.isfinite(value) else candidates[ranks[0]], dtype=float)
-    arm = np.where(locked, lower, arm)
-    return arm_difference(arm, np.zeros(robot.n_arm), robot.arm_continuous)
+    return np.asarray(arm if np.isfinite(value) else candidates[ranks[0]], dtype=float)

@@ -4,8 +4,8 @@ The :class:`pbvs_pin.plant.Plant` integrates the controller's own Pinocchio mode
 no-side-slip constraint built in. :class:`MujocoPlant` instead builds a MuJoCo model from the
 *same assembled URDF* (:attr:`pbvs_pin.robot.MobileManipulator.urdf_xml`, through MuJoCo's own
 URDF importer and ``MjSpec``): the platform's root body gets a free joint, its drive wheels are
-cylinders (the URDF's wheel radius) that roll with friction on a ground plane, and every wheel
-and arm joint is driven by a velocity servo
+cylinders (the URDF's, or built from the drive keys) that roll with friction on a ground plane,
+and every wheel and arm joint is driven by a velocity servo
 
 .. math:: \tau_j = \mathrm{clip}\big(K_j(q) (r_j - \dot q_j) + D_j r_j + F_j \tanh(r_j / v_s)
           + G_j\, g_j(q),\ \pm \tau_{j,max}\big),\quad r_j = \mathrm{clip}(\dot q_{j,ref},
@@ -59,12 +59,13 @@ import yourdfpy
 from lxml import etree
 
 from pbvs_pin import frames
-from pbvs_pin.assembly import DRIVE_ADVICE, DriveAxle, UrdfSource, find_drive_axle
+from pbvs_pin.assembly import DriveAxle, UrdfSource, find_drive_axle
 from pbvs_pin.base import DifferentialDrive, Omnidirectional
 from pbvs_pin.exceptions import DriveAxleNotFound, GainError, UrdfError
 from pbvs_pin.mujoco_kernels import arm_gravity_load, servo_commands, true_state
 from pbvs_pin.mujoco_payload import UnknownPayload
 from pbvs_pin.mujoco_stability import warn_if_tipping
+from pbvs_pin.mujoco_wheels import add_key_wheels
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -103,14 +104,26 @@ _CONTACT_AFFINITY = 1
 meet the ground but never each other."""
 
 
+WORLD_LINK = "world_link"
+"""What a link named ``world`` (an arm's root in example-robot-data's UR URDFs) is renamed."""
+
+
 def _strip_geometry(xml: str | bytes) -> bytes:
-    """The URDF without ``<visual>`` elements and without mesh ``<collision>`` elements."""
+    """The URDF without ``<visual>`` elements and mesh ``<collision>`` elements.
+
+    A link named ``world`` is renamed :data:`WORLD_LINK`: MuJoCo's URDF importer would merge
+    it, and the arm hanging from it, into its fixed world body.
+    """
     root = etree.fromstring(xml.encode() if isinstance(xml, str) else xml)
     for element in root.findall("link/visual"):
         element.getparent().remove(element)
     for element in root.findall("link/collision"):
         if element.find("geometry/mesh") is not None:
             element.getparent().remove(element)
+    for path, key in (("link", "name"), ("joint/parent", "link"), ("joint/child", "link")):
+        for element in root.findall(path):
+            if element.get(key) == "world":
+                element.set(key, WORLD_LINK)
     return etree.tostring(root)
 
 
@@ -165,8 +178,8 @@ def build_spec(
 
     Returns:
         The spec (free joint on the drive footprint, ground, contact geometry; or a holonomic
-        base's planar joints, :func:`_holonomic_spec`) and the drive axle found in the URDF
-        (None for a holonomic base).
+        base's planar joints, :func:`_holonomic_spec`) and the drive axle found in the URDF, or
+        built from the drive keys if it has none (:mod:`pbvs_pin.mujoco_wheels`; None: holonomic).
 
     Raises:
         UrdfError: If the robot has no URDF, has a fixed base, or MuJoCo rejects it.
@@ -183,19 +196,14 @@ def build_spec(
     xml = _strip_geometry(robot.urdf_xml)
     if isinstance(robot.base, Omnidirectional):
         return _holonomic_spec(robot, xml), None
+    spec = _read_spec(xml, robot.source)
     try:
         axle = _drive_axle(xml, robot.source)
-    except DriveAxleNotFound as err:  # an explicit drive sets the controller's model only
-        reason = err.problem.removesuffix(f" {DRIVE_ADVICE}")
-        raise UrdfError(
-            robot.source,
-            "MuJoCo plant: the wheels that roll on its floor are the URDF's drive axle, which "
-            f"this URDF does not describe ({reason.rstrip('.')}); an explicit drive "
-            "(wheel_radius, track, wheel_speed_limit) sets the controller's model only. Run "
-            'it on the Pinocchio plant (plant.engine = "pinocchio")',
-        ) from err
-    spec = _read_spec(xml, robot.source)
-    root = spec.body(frames.DRIVE_FOOTPRINT)
+        root = spec.body(frames.DRIVE_FOOTPRINT)
+    except DriveAxleNotFound:  # the drive keys gave the drive: wheels built from them
+        root = spec.worldbody.first_body()
+        supported = any(body.geoms for body in _static_descendants(root))
+        axle = add_key_wheels(spec, root, robot.base, supported)
     root.add_freejoint(name=frames.DRIVE_FOOTPRINT)
     platform = {body.name for body in _static_descendants(root)}
     wheels = {spec.joint(name).parent.name for name in axle.wheel_joints}

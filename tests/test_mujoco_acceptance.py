@@ -4,13 +4,25 @@ Issue 9's bounds, on each robot of :data:`pbvs_pin.report.ENGINE_ROBOTS` with th
 shipped scenarios and the default sensing (wheel odometry, encoder velocities, one frame of
 camera latency): max |feature error| over the last 5 s below 5 px (Experiment 4: 1 px), and
 the target never lost. The report's two-plant table is built from these runs.
+
+Except where the robot tips (:data:`TIPS`): with its arm on the platform (a URDF link named
+``world`` renamed), ``pioneer_ur5`` starts with its centre of mass 0.05 m inside the wheels'
+support, and in Experiments 1-3 its arm, following the receding target, carries the centre
+of mass forward to within 0.006 m of the front wheels' contact line or just past it, where
+the platform's braking and the arm's own accelerations tip the Pioneer over (21 kg of UR5 on
+13.2 kg of platform whose axles are 0.268 m apart): the target is lost. What those runs must
+show is that sequence.
 """
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
+from pbvs_pin.catalogue import build_robot
 from pbvs_pin.experiments import PAPER_CLAIMS
+from pbvs_pin.home import HomeCriteria
+from pbvs_pin.mujoco_support import centre_of_mass_margins, support_polygon
 from pbvs_pin.report import (
     ENGINE_ROBOTS,
     ENGINES_BEGIN,
@@ -30,30 +42,67 @@ CONVERGE_PX = 1.0
 """The same for Experiment 4 (perfect knowledge of the target's velocity)."""
 
 
+TIPS = {("pioneer_ur5", f"experiment{i}") for i in (1, 2, 3)}
+"""Runs in which the robot tips over mid-run (see the module's docstring)."""
+
+TIP_AFTER_S = 10.0
+"""Earliest time [s] a run of :data:`TIPS` may lose the target: it stands at its home."""
+
+EDGE_M = 0.01
+"""Margin [m] of the centre of mass inside the support (a fifth of the home's) that a run of
+:data:`TIPS` reaches before it loses the target."""
+
+
 @pytest.fixture(scope="module")
-def summaries() -> dict[tuple[str, str], dict]:
-    """Each engine robot's four experiments on the MuJoCo plant."""
-    return {
-        (robot, name): summarize(
-            simulate(
-                load_scenario(name).with_values(
-                    **{"robot.name": robot, "plant.engine": "mujoco"}
-                )
+def runs() -> dict[tuple[str, str], tuple[dict, np.ndarray]]:
+    """Each engine robot's four experiments on the MuJoCo plant: summary, log's ``t`` and the
+    centre of mass's margin [m] inside the support over the run (platform robots; else empty).
+    """
+    out = {}
+    for robot in ENGINE_ROBOTS:
+        model = build_robot(robot)
+        support = support_polygon(model)
+        for name in PAPER_CLAIMS:
+            log = simulate(
+                load_scenario(name).with_values(**{"robot.name": robot, "plant.engine": "mujoco"})
             )
-        )
-        for robot in ENGINE_ROBOTS
-        for name in PAPER_CLAIMS
-    }
+            margins = (
+                np.zeros(0)
+                if support is None
+                else centre_of_mass_margins(model, log["arm"], support)
+            )
+            out[(robot, name)] = (summarize(log), np.stack([log["t"][: len(margins)], margins]))
+    return out
 
 
-@pytest.mark.parametrize("name", list(PAPER_CLAIMS))
-@pytest.mark.parametrize("robot", ENGINE_ROBOTS)
+@pytest.fixture(scope="module")
+def summaries(runs) -> dict[tuple[str, str], dict]:
+    """Each engine robot's four experiments' summaries."""
+    return {key: summary for key, (summary, _) in runs.items()}
+
+
+HELD = [(r, n) for r in ENGINE_ROBOTS for n in PAPER_CLAIMS if (r, n) not in TIPS]
+
+
+@pytest.mark.parametrize(("robot", "name"), HELD)
 def test_the_mujoco_plant_holds_the_target(summaries, robot, name):
     s = summaries[(robot, name)]
     bound = CONVERGE_PX if name == "experiment4" else HOLD_PX
     assert s["engine"] == "mujoco"
     assert s["target_lost_samples"] == 0
     assert s["max_abs_error_final_window_px"] < bound, s["max_abs_error_final_window_px"]
+
+
+@pytest.mark.parametrize(("robot", "name"), sorted(TIPS))
+def test_the_arm_carries_the_centre_of_mass_to_the_wheels_and_the_robot_tips(runs, robot, name):
+    """Starts with the home's margin, keeps the target while the margin lasts, tips at the edge."""
+    summary, (t, margin) = runs[(robot, name)]
+    assert margin[0] >= HomeCriteria().com_margin - 1e-3, margin[0]
+    lost = summary["target_lost_first_s"]
+    assert lost is not None and lost > TIP_AFTER_S, lost
+    assert summary["max_abs_error_final_window_px"] > HOLD_PX
+    # near static: the centre of mass has reached the support's edge before the target is lost
+    assert margin[t < lost].min() < EDGE_M, margin[t < lost].min()
 
 
 def test_the_report_shows_odometry_drift_and_slip_on_mujoco(summaries):

@@ -280,3 +280,15 @@ def test_an_inertia_mujoco_refuses_is_replaced_by_its_diagonal():
     plant = _plant(robot)
     assert np.all(plant.model.body_inertia[plant.model.body_mass > 0] > 0)
     assert plant.model.nu == len(plant.axle.wheel_joints) + robot.n_arm
+
+
+def test_an_arm_whose_root_link_is_named_world_rides_on_the_platform(load):
+    """example-robot-data's UR5 roots at a link named ``world``, which MuJoCo's URDF importer
+    reads as its world body: the arm stood on the floor beside the platform. Every body now
+    hangs from the platform, and the platform carries the URDF's whole mass (Pinocchio's)."""
+    robot = load("pioneer_ur5")
+    xml = robot.urdf_xml
+    assert '<link name="world"' in (xml.decode() if isinstance(xml, bytes) else xml)
+    model = MujocoPlant(robot, ServoModel.from_robot(robot), robot.home()).model
+    assert all(model.body_rootid[body] == 1 for body in range(1, model.nbody))
+    assert model.body_subtreemass[1] == pytest.approx(pin.computeTotalMass(robot.model))

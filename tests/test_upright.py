@@ -131,7 +131,7 @@ def test_projected_null_space_does_not_roll_the_image(name, seed):
     output, (jacobian, _), _ = _output(on, q)
     paper, _, _ = _output(off, q)
     phi = _phi(robot, q)
-    assert abs(phi) > 0.02 and output.upright_weight == 1.0
+    assert abs(phi) > 0.005 and output.upright_weight == 1.0  # the image somewhat rolled
     assert abs(_phi_rate(robot, q, paper.null_space)) > 1e-3  # the paper's law rolls the image
     assert _phi_rate(robot, q, output.null_space) == pytest.approx(-RESTORING_RATE * phi, abs=1e-7)
     # still a self-motion: the features do not move (J in px)
