@@ -515,12 +515,12 @@ class Controller:
         """Kinematic controller on the measurement; zero command when there is none."""
         model = self.model
         theta = arm_angles(q, model.arm_q_indices, model.arm_continuous)  # q checked by step
-        state = SecondaryInput(theta, self.laser[0], self.laser[1], dt)
+        camera_jacobian = model.camera_jacobian_unchecked(q)
+        rotation = model.data.oMf[model.camera_frame_id].rotation
+        state = SecondaryInput(theta, self.laser[0], self.laser[1], dt, rotation, q)
         secondary = secondary_vector(self.objectives, state, model.n_base, model.n)
         if measurement is None:
             return self.law.zero_output(self.features.size), None
-        camera_jacobian = model.camera_jacobian_unchecked(q)
-        rotation = model.data.oMf[model.camera_frame_id].rotation
         xi, jacobian, object_jacobian = self.features.jacobians_from_measurement(
             model.camera, measurement, camera_jacobian, rotation.T
         )

@@ -99,6 +99,7 @@ CASES = {  # key: (context, new value)
     "secondary.impedance_mass": (OBSTACLE, 1.0),
     "secondary.impedance_damping": (OBSTACLE, 2.0),
     "secondary.k_lambda": ({}, 2.0),
+    "secondary.k_heading": ({}, 1.0),
     "laser.rate": (OBSTACLE, 10.0),
     "laser.beams": (OBSTACLE, 91),
     "laser.field_of_view": (OBSTACLE, 1.0),

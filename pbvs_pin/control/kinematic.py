@@ -30,6 +30,7 @@ import numpy.typing as npt
 from numba import njit
 
 from pbvs_pin.control.balanced import BALANCED_SHARE, balanced_feedback, balanced_gain
+from pbvs_pin.control.stops import stop_weights, weighted_inverse
 from pbvs_pin.control.upright import (
     LOOP_GAIN_MARGIN,
     RESTORING_RATE,
@@ -240,24 +241,31 @@ def passivity_law(
     for j in range(n):
         shaped[j] = k1[j] * np.tanh(k2[j] * secondary[j])
     nu = matvec(jacobian.T, kc_error)
-    pinv, sigma_min, damped = damped_pseudo_inverse(
-        jacobian, weight_inverse, damping[0], damping[1]
-    )
-    feedforward = matvec(pinv, matvec(object_jacobian, target_velocity))
-    null_space = shaped - matvec(pinv, matvec(jacobian, shaped))
-    if safety.upright:  # keep the image upright
-        null_space, sigma_phi, upright_weight = upright_null_space(
-            null_space, pinv, jacobian, weight_inverse, upright, damping[0], safety.upright_rate
-        )
-    gains = SafetyOutput(loop_gain, gain_factor, sigma_phi, upright_weight)
     if feedback_law == BALANCED:
         gain = balanced_gain(safety.loop_gain_margin, safety.camera_period, np.max(k))
         feedback = balanced_feedback(kc_error, jacobian, limits, room_up, room_down, gain)
-    elif feedback_law == PSEUDOINVERSE:
-        feedback = matvec(pinv, kc_error)
     else:
         feedback = nu
-    u, factor = saturate(null_space - feedback - feedforward, limits)
+    demand = matvec(object_jacobian, target_velocity)
+    weights = np.ones(n)
+    for _ in range(2):  # the second pass without the joints at their stops (.stops)
+        inverse = weighted_inverse(weight_inverse, weights)
+        pinv, sigma_min, damped = damped_pseudo_inverse(jacobian, inverse, damping[0], damping[1])
+        if feedback_law == PSEUDOINVERSE:
+            feedback = matvec(pinv, kc_error)
+        feedforward = matvec(pinv, demand)
+        held = weights * shaped
+        null_space = held - matvec(pinv, matvec(jacobian, held))
+        if safety.upright:  # keep the image upright
+            null_space, sigma_phi, upright_weight = upright_null_space(
+                null_space, pinv, jacobian, inverse, upright, damping[0], safety.upright_rate
+            )
+        raw = null_space - feedback - feedforward
+        weights = stop_weights(raw, room_up, room_down)
+        if np.min(weights) >= 1.0:
+            break
+    gains = SafetyOutput(loop_gain, gain_factor, sigma_phi, upright_weight)
+    u, factor = saturate(raw, limits)
     if not all_finite(u):
         return LawOutput(False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0, gains)
     storage = storage_function(error, k)

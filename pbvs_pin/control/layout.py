@@ -134,6 +134,8 @@ class Settings(NamedTuple):
     """Camera sample period ``T`` of the loop-gain net [s]; 0 turns the net off."""
     loop_gain_margin: float = 1.0
     """Largest gain per camera sample ``k T lambda_max(J J^T)`` [1]."""
+    heading_gain: float = 0.0
+    """``k_psi`` of the base-heading objective [1/s] (:func:`~.secondary.heading_term`); 0: off."""
 
 
 class State(NamedTuple):
@@ -296,6 +298,7 @@ def settings(block: np.ndarray) -> Settings:
         upright_rate=block[17],
         camera_period=block[18],
         loop_gain_margin=block[19],
+        heading_gain=block[20],
     )
 
 

@@ -20,6 +20,7 @@ from pbvs_pin.control.kinematic import PassivityController, ServoGains
 from pbvs_pin.control.noise import noise_margin
 from pbvs_pin.control.secondary import (
     ArmPosture,
+    BaseHeading,
     JointLimitAvoidance,
     ObstacleAvoidance,
     SecondaryObjective,
@@ -244,4 +245,7 @@ def secondary_objectives(
     if spec.joint_limits:
         lower, upper = model.arm_position_limits()
         objectives.append(JointLimitAvoidance(lower, upper))
+    if spec.k_heading > 0.0 and model.n_base == 2:
+        d0 = spec.d0 if spec.obstacle_avoidance else 0.0
+        objectives.append(BaseHeading(spec.k_heading, d0))
     return objectives

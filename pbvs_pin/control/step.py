@@ -41,10 +41,13 @@ from pbvs_pin.control.ibvs import ClassicIbvs
 from pbvs_pin.control.kinematic import ControlOutput, PassivityController, passivity_law
 from pbvs_pin.control.secondary import (
     ArmPosture,
+    BaseHeading,
     JointLimitAvoidance,
     ObstacleAvoidance,
     SecondaryObjective,
     add_obstacle_terms,
+    heading_share,
+    heading_term,
     impedance_step,
     joint_limit_term,
     obstacle_force,
@@ -135,6 +138,10 @@ def fused_control_step(
         )
         out.impedance_velocity[:] = impedance
         add_obstacle_terms(secondary, impedance, n_base)
+    if setting.heading_gain > 0.0 and n_base == 2:
+        d0 = setting.d0 if setting.obstacle else 0.0
+        share = heading_share(laser[0], laser[1], d0)
+        secondary[1] += share * heading_term(rotation, q, setting.heading_gain)
     if not np.isnan(age):  # the prediction: the frame's points moved by phat_dot, eq. (2) at q
         image, image_depths = predict_points(
             world, target_velocity, age, translation, rotation, setting.focal
@@ -251,6 +258,8 @@ class FusedControlStep:
                 switched_on.update(
                     joint_limits=True, limit_margin=objective.margin, limit_gain=objective.gain
                 )
+            elif isinstance(objective, BaseHeading):
+                switched_on.update(heading_gain=objective.gain)
             elif isinstance(objective, ObstacleAvoidance):
                 switched_on.update(
                     obstacle=True, k_u=objective.k_u, k_w=objective.k_w, d0=objective.d0,
@@ -310,7 +319,8 @@ class FusedControlStep:
         """Whether the fused step reproduces this controller and these objectives."""
         kinds = [type(objective) for objective in objectives]
         built_in = all(
-            kind in (ArmPosture, JointLimitAvoidance, ObstacleAvoidance) for kind in kinds
+            kind in (ArmPosture, BaseHeading, JointLimitAvoidance, ObstacleAvoidance)
+            for kind in kinds
         )
         return (
             not isinstance(controller, ClassicIbvs) and built_in and len(set(kinds)) == len(kinds)
