@@ -79,14 +79,25 @@ def test_tiago_pro_on_the_mujoco_plant():
 
 
 def test_unshipped_arms_on_the_mujoco_plant():
-    def finals(arm: str) -> str:
+    """The Reach Bravo 7 holds; the UR10, its arm on the platform, loses the target in
+    Experiments 1 and 3 (the Pioneer tips under the heavy arm, as with the UR5)."""
+    def runs(arm: str) -> list[dict]:
         values = robot_values(unshipped_arm(arm))
-        errors = [
-            run(name, **values, **{"plant.engine": "mujoco"})[0]["max_abs_error_final_window_px"]
-            for name in EXPERIMENTS
-        ]
-        assert max(errors) < 5.0  # "hold"
-        return f"{errors[0]:.2f}, {errors[1]:.2f}, {errors[2]:.2f} and {errors[3]:.2f} px"
+        return [run(name, **values, **{"plant.engine": "mujoco"})[0] for name in EXPERIMENTS]
 
-    stated(f"the UR10 ends Experiments 1-4 at {finals('ur10')}, the Reach Bravo 7 at "
-           f"{finals('bravo7_no_ee')}", "limitations")  # fmt: skip
+    bravo = [s["max_abs_error_final_window_px"] for s in runs("bravo7_no_ee")]
+    assert max(bravo) < 5.0  # "hold"
+    stated(f"the unshipped Reach Bravo 7 ends Experiments 1-4 at {bravo[0]:.2f}, {bravo[1]:.2f}, "
+           f"{bravo[2]:.2f} and {bravo[3]:.2f} px", "limitations")  # fmt: skip
+    ur10 = runs("ur10")
+    assert ur10[0]["target_lost_samples"] > 0 and ur10[2]["target_lost_samples"] > 0
+    assert ur10[1]["target_lost_samples"] == 0 and ur10[3]["target_lost_samples"] == 0
+    stated(
+        f"loses the target in Experiments 1 and 3 ({ur10[0]['target_lost_samples']} and "
+        f"{ur10[2]['target_lost_samples']} samples", "limitations",
+    )  # fmt: skip
+    stated(
+        f"Experiment 2 ({ur10[1]['oscillation_rms_px']:.1f} px RMS above 0.5 Hz) and ends "
+        f"Experiment 4 at {ur10[3]['max_abs_error_final_window_px']:.2f} px (rule 0.5)",
+        "limitations",
+    )
