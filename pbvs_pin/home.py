@@ -69,7 +69,7 @@ from pbvs_pin.exceptions import GainError, HomeNotFound
 from pbvs_pin.joint_angles import arm_difference
 from pbvs_pin.manipulability import arm_manipulability
 from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.validation import as_count, as_instance, convert_fields
+from pbvs_pin.validation import as_count, as_instance, as_rows, convert_fields
 
 CAMERA_FORWARD = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 """``R_d``: optical frame in the platform frame when looking forward, image upright."""
@@ -490,6 +490,7 @@ def compute_home(
     criteria = criteria or HomeCriteria()
     starts, seed = as_count("starts", starts), as_count("seed", seed)
     refine = as_count("refine", refine, minimum=1)
+    support = None if support is None else as_rows("support", support, 2)
     lower, upper, limited = _limits(robot)
     margin = np.where(limited, criteria.limit_margin * (upper - lower), 0.0)
     box = (lower + margin, upper - margin)

@@ -160,18 +160,27 @@ def test_named_joints_that_are_no_base_are_refused(tmp_path, names, words):
         fix_base_joints(source, tuple(names))
 
 
-def test_the_shipped_robots_have_no_base_joints_and_no_wheels_along_x():
-    sources = {str(REFERENCE), *(recipe.base for recipe in RECIPES.values())}
+def test_the_shipped_robots_name_their_base_joints_and_drive_along_their_forward_axis():
+    tables = {}
     for path in sorted((REPO_ROOT / "robots").glob("*.toml")):
-        table = RobotSection.from_toml(tomllib.loads(path.read_text())["robot"], str(path))
-        sources.add(table.urdf or table.base or str(REFERENCE))  # a name: a recipe's base
-    assert len(sources) == 7  # the reference, pioneer3at, tiago, Stretch x2, TIAGo Pro, Vega
-    for name in sorted(sources):
-        source = load_urdf(name)
+        tables[path.stem] = RobotSection.from_toml(tomllib.loads(path.read_text())["robot"],
+                                                   str(path))  # fmt: skip
+    assert len(tables) == 20
+    # Only the planning URDF models its base as joints, and its file names them.
+    assert {name for name, table in tables.items() if table.base_joints} == {"fetch_whole_body"}
+    for name, table in tables.items():
+        recipe = RECIPES.get(table.name)  # a robot by name: a recipe's platform
+        urdf = table.urdf or table.base or (recipe.base if recipe else str(REFERENCE))
+        source = load_urdf(urdf, table.repair_inertia, table.geometry_density)
         with warnings.catch_warnings():
             warnings.simplefilter("error")
-            assert fix_base_joints(source) == (), name
-            assert warn_wheel_axles(source, "x", source.root_link()) == [], name
+            assert fix_base_joints(source, table.base_joints) == (table.base_joints or ()), name
+            assert warn_wheel_axles(source, table.forward_axis, source.root_link()) == [], name
+    # The named joints are the ones the loader would have recognised by itself, with a warning.
+    fetch = tables["fetch_whole_body"]
+    source = load_urdf(fetch.base, fetch.repair_inertia, fetch.geometry_density)
+    with pytest.warns(PbvsWarning, match="base_x_joint"):
+        assert fix_base_joints(source) == fetch.base_joints
 
 
 # ---------------------------------------------------------------- forward axis

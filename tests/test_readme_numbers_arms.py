@@ -24,18 +24,20 @@ def test_the_image_rolls_without_the_upright_constraint():
         "target was lost"
     )
     tiago, tiago_figures = run("experiment4", **{"robot.name": "tiago"}, **paper_posture)
-    upright = run(
+    upright, upright_figures = run(
         "experiment4", **{"robot.name": "tiago", "secondary.posture_target": "max_manipulability"}
-    )[0]
+    )
     assert tiago["target_lost_samples"] == 0
+    error = "max_abs_error_final_window_px"
     stated(
         f"TIAGo's rolled by {abs(tiago_figures['upright_min_deg']):.0f} deg and ended "
-        f"{tiago['max_abs_error_final_window_px']:.1f} px off "
-        f"({upright['max_abs_error_final_window_px']:.1f} px with it)"
+        f"{tiago[error]:.1f} px off; with it, by {abs(upright_figures['upright_min_deg']):.0f} "
+        f"deg and {upright[error]:.1f} px off"
     )
     assert panda_figures["upright_min_deg"] < -45.0 and tiago_figures["upright_min_deg"] < -5.0
-    error = "max_abs_error_final_window_px"
-    assert upright[error] < tiago[error]  # the upright constraint does better
+    # the constraint holds the image upright; it does not lower TIAGo's error (the sentence
+    # says so: this posture target misses Experiment 4's rule either way)
+    assert abs(upright_figures["upright_min_deg"]) < 2.0
 
 
 def test_the_posture_target():
