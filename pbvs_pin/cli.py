@@ -2,9 +2,9 @@
 
 Every subcommand prints a package error (:class:`pbvs_pin.exceptions.PbvsError`) as one line
 on stderr, without a traceback, and exits with status 2. Every file or folder a subcommand
-writes is declared with :func:`output_option` and checked (:func:`pbvs_pin.outputs.check_output`)
-before the subcommand starts. Ctrl-C prints one line and exits with status 130; during a
-simulation it is held until the next logged instant (:mod:`pbvs_pin.interrupts`), so that it
+writes is declared with :func:`pbvs_pin.outputs.output_option` and checked
+(:func:`pbvs_pin.outputs.check_output`) before the subcommand starts. Ctrl-C prints one line
+and exits with status 130; during a simulation it is held until the next logged instant (:mod:`pbvs_pin.interrupts`), so that it
 never lands inside compiled code, and the run so far is saved first (:class:`RunInterrupted`).
 """
 
@@ -38,7 +38,7 @@ from pbvs_pin.interrupts import (
     loaded,
     stage,
 )
-from pbvs_pin.outputs import Output, check_output, replace_run_folder
+from pbvs_pin.outputs import Output, check_outputs, output_option, replace_run_folder
 from pbvs_pin.report import ENGINE_ROBOTS
 from pbvs_pin.ros.commands import add_arguments as ros_arguments
 from pbvs_pin.shipped import scenario_file
@@ -204,12 +204,19 @@ def _run(args: argparse.Namespace) -> None:
                 file=sys.stderr,
             )
     eye = args.eye_view
+    bag = Path(args.bag) if args.bag else None
+    if bag is not None:  # the ros extra is checked before the run, not after it
+        from pbvs_pin.ros.commands import ros_module
+
+        ros_module("run_bag")
     if live is None:
-        summary = run_scenario(scenario, out, html, eye_view=eye)[1]
+        summary = run_scenario(scenario, out, html, eye_view=eye, bag=bag)[1]
     else:
         with live:
             print(f"live view: {live.url} (playing at {speed:g}x real time)")
-            summary = run_scenario(scenario, out, html, observer=live.show, eye_view=eye)[1]
+            summary = run_scenario(
+                scenario, out, html, observer=live.show, eye_view=eye, bag=bag
+            )[1]
     from pbvs_pin.claims import verdict_lines
 
     verdict = verdict_lines(summary)
@@ -224,6 +231,7 @@ def _run(args: argparse.Namespace) -> None:
     print(
         f"log, summary (summary.json{'' if args.json else '; --json prints it'}) and figures "
         f"written to {out}" + (f"; replay: {html}" if html else "") + eye_file
+        + (f"; ROS 2 bag: {bag}" if bag else "")
     )
 
 
@@ -253,7 +261,8 @@ def _reproduce(args: argparse.Namespace) -> None:
     for robot in args.engines:
         if robot not in ROBOT_NAMES:
             raise RobotNotFound(robot, ROBOT_NAMES)
-    from pbvs_pin.experiments import reproduce, with_robot
+    from pbvs_pin.experiments import with_robot
+    from pbvs_pin.reproduction import reproduce
     from pbvs_pin.sim.scenario import load_scenario
 
     for robot in args.robots:  # a name, a URDF or a robot file: checked before any run
@@ -335,38 +344,6 @@ ROBOT_HELP = (
 """Help of the robot argument of ``info`` and ``view``."""
 
 
-def output_option(
-    parser: argparse.ArgumentParser, flag: str, kind: Output, **kwargs
-) -> argparse.Action:
-    """Add an option or argument naming something the command writes, checked before it runs.
-
-    Every file or folder a command writes goes through here: :func:`main` checks each one
-    with :func:`pbvs_pin.outputs.check_output` before calling the command.
-
-    Args:
-        parser: The command's parser.
-        flag: The option, e.g. ``"--out"``.
-        kind: What is written there.
-        kwargs: As :meth:`argparse.ArgumentParser.add_argument`.
-    """
-    action = parser.add_argument(flag, **kwargs)
-    declared = parser.get_default("outputs") or ()
-    parser.set_defaults(outputs=(*declared, (action.dest, kind)))
-    return action
-
-
-def check_outputs(args: argparse.Namespace) -> None:
-    """Check every output the command declared (:func:`output_option`), creating nothing.
-
-    Raises:
-        OutputError: For the first path that cannot be written.
-    """
-    for dest, kind in getattr(args, "outputs", ()):
-        value = getattr(args, dest)
-        if value is not None:
-            check_output(Path(value), kind, force=getattr(args, "force", False))
-
-
 FORCE_HELP = "replace all files of an earlier run in the output folder"
 """Help of ``--force`` of ``run`` and ``reproduce``."""
 
@@ -441,6 +418,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="also save the robot's-eye view (what the camera saw, marked) in OUT: strip as "
         "eye_view.png, video as eye_view.mp4; a --html replay then shows it",
     )
+    output_option(
+        run, "--bag", Output.NEW_FOLDER,
+        help="also write the run as a ROS 2 bag (rosbag2, MCAP) into this new folder: TF, "
+        "joint_states, odom, cmd_vel, arm commands, diagnostics and the camera's images at "
+        "10 Hz, for Foxglove or ros2 bag (the ros extra)",
+    )  # fmt: skip
     run.add_argument(
         "--json", action="store_true", help="also print the summary (OUT/summary.json) as JSON"
     )

@@ -145,12 +145,13 @@ def _run_so_far(stop: Any) -> str:
 def _hold(signum: int, frame: object) -> None:
     """SIGINT handler: hold the first Ctrl-C of a simulation, raise on the second.
 
-    While the command starts (nothing written yet) it ends the process at once, with one line,
-    as while loading: the start-up imports libraries lazily, and a ``KeyboardInterrupt``
-    raised inside one of their imports can be swallowed (trimesh guards its optional imports
-    with ``except BaseException``), after which the run went on and exited 0.
+    While the ``pbvs-pin`` command starts (nothing written yet) it ends the process at once,
+    with one line, as while loading: the start-up imports libraries lazily, and a
+    ``KeyboardInterrupt`` raised inside one of their imports can be swallowed (trimesh guards
+    its optional imports with ``except BaseException``), after which the run went on and
+    exited 0.
     """
-    if _held["stage"] == "start-up":
+    if _held["stage"] == "start-up" and launched_as_command():  # never a test's process
         os.write(2, f"pbvs-pin: {_SAID['start-up']}\n".encode())
         os._exit(INTERRUPTED)
     if _held["pending"] or not _held["simulating"]:

@@ -1,6 +1,6 @@
 """The one check of every file or folder a command writes, made before any work starts.
 
-Every ``pbvs-pin`` command declares its outputs (:func:`pbvs_pin.cli.output_option`); the
+Every ``pbvs-pin`` command declares its outputs (:func:`output_option`); the
 command line checks them all with :func:`check_output` before the command runs, so that a
 path that cannot be written is refused in one line, never after a long run or in a traceback.
 The check creates nothing: a refused command leaves the disk as it was.
@@ -8,6 +8,7 @@ The check creates nothing: a refused command leaves the disk as it was.
 
 from __future__ import annotations
 
+import argparse
 import enum
 import os
 import shutil
@@ -25,6 +26,8 @@ class Output(enum.Enum):
     """A folder of results that the command adds to (analysis, sweep: it resumes)."""
     RUN_FOLDER = "run folder"
     """A folder a run fills: it must be new or empty, or hold an earlier run to replace."""
+    NEW_FOLDER = "new folder"
+    """A folder written whole, that must not exist yet (a ROS bag)."""
 
 
 RUN_MARKERS = ("log.npz", "summary.json", "report.md", "sweep.json", "analysis.json")
@@ -64,6 +67,8 @@ def check_output(path: Path, kind: Output, force: bool = False) -> None:
         )
     if kind is Output.RUN_FOLDER:
         _check_run_folder(path, force)
+    if kind is Output.NEW_FOLDER and path.exists():
+        raise OutputError(str(path), "exists; expected a new folder; nothing was run")
 
 
 def _check_run_folder(path: Path, force: bool) -> None:
@@ -99,3 +104,35 @@ def replace_run_folder(path: Path) -> None:
                 entry.unlink()
         except OSError as err:
             raise OutputError(str(entry), f"cannot be removed ({err.strerror or err})") from err
+
+
+def output_option(
+    parser: argparse.ArgumentParser, flag: str, kind: Output, **kwargs
+) -> argparse.Action:
+    """Add an option or argument naming something the command writes, checked before it runs.
+
+    Every file or folder a command writes goes through here: the command line's ``main``
+    checks each one with :func:`check_output` (:func:`check_outputs`) before calling the command.
+
+    Args:
+        parser: The command's parser.
+        flag: The option, e.g. ``"--out"``.
+        kind: What is written there.
+        kwargs: As :meth:`argparse.ArgumentParser.add_argument`.
+    """
+    action = parser.add_argument(flag, **kwargs)
+    declared = parser.get_default("outputs") or ()
+    parser.set_defaults(outputs=(*declared, (action.dest, kind)))
+    return action
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Check every output the command declared (:func:`output_option`), creating nothing.
+
+    Raises:
+        OutputError: For the first path that cannot be written.
+    """
+    for dest, kind in getattr(args, "outputs", ()):
+        value = getattr(args, dest)
+        if value is not None:
+            check_output(Path(value), kind, force=getattr(args, "force", False))

@@ -357,7 +357,7 @@ def add_arguments(parser: argparse.ArgumentParser, output: Callable) -> None:
     Args:
         parser: The subcommand's parser.
         output: Declares an argument naming what the command writes
-            (:func:`pbvs_pin.cli.output_option`: checked before the command runs).
+            (:func:`pbvs_pin.outputs.output_option`: checked before the command runs).
     """
     parser.add_argument("folder", help="folder of robot TOML files")
     output(

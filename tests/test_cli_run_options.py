@@ -35,7 +35,7 @@ def scenario_of_run(monkeypatch):
     """The scenario ``run`` would simulate, caught before the simulation."""
     caught = []
 
-    def trap(scenario, out, html=None, observer=None, eye_view=None):
+    def trap(scenario, out, html=None, observer=None, eye_view=None, bag=None):
         caught.append(scenario)
         raise SystemExit(0)
 
@@ -102,7 +102,7 @@ def test_reproduce_takes_a_robot_file(tmp_path, monkeypatch):
     robot_file = tmp_path / "my_robot.toml"
     robot_file.write_text('[robot]\nname = "pioneer_z1"\n')
     asked = []
-    monkeypatch.setattr("pbvs_pin.experiments.reproduce", lambda out, **kw: asked.append(kw))
+    monkeypatch.setattr("pbvs_pin.reproduction.reproduce", lambda out, **kw: asked.append(kw))
     status = main(["reproduce", "--robots", str(robot_file), "pioneer_ur5", "--engines",
                    "--out", str(tmp_path / "results")])  # fmt: skip
     assert status == 0
@@ -145,7 +145,7 @@ def test_run_prints_its_verdict_first_and_json_only_when_asked(tmp_path, capsys,
                "oscillation_rms_px": 0.0, "duration_s": 60.0}  # fmt: skip
     asked = []
 
-    def finished(scenario, out, html=None, observer=None, eye_view=None):
+    def finished(scenario, out, html=None, observer=None, eye_view=None, bag=None):
         asked.append(eye_view)
         return None, summary
 

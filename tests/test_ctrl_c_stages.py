@@ -106,7 +106,9 @@ def test_ctrl_c_that_a_library_swallows_while_starting_still_ends_the_run():
     where the start-up imports the libraries lazily)."""
     code = (
         "import signal\n"
+        "from pbvs_pin import interrupts\n"
         "from pbvs_pin.interrupts import held_interrupts, stage\n"
+        "interrupts.launched_as_command = lambda: True  # as pbvs-pin is\n"
         "stage('start-up')\n"
         "with held_interrupts():\n"
         "    try:\n"

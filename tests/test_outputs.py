@@ -1,6 +1,6 @@
 """The one output guard (issue 24 item 1): every command, enumerated from the parser.
 
-Every option a command writes to is declared with :func:`pbvs_pin.cli.output_option`; a new
+Every option a command writes to is declared with :func:`pbvs_pin.outputs.output_option`; a new
 command or option that writes without declaring it fails
 :func:`test_every_writing_option_is_declared`. Each declared output is then tried on paths
 that cannot be written, with the command itself replaced by a trap: the refusal must come

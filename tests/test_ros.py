@@ -122,6 +122,7 @@ def _check_bag(bag, summary: dict, steps: int) -> None:
         "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
         "/camera/image_raw": "sensor_msgs/msg/Image",
         "/camera/camera_info": "sensor_msgs/msg/CameraInfo",
+        "/tf": "tf2_msgs/msg/TFMessage",
     }  # fmt: skip
     try:
         with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_KILTED)) as reader:
@@ -129,6 +130,11 @@ def _check_bag(bag, summary: dict, steps: int) -> None:
             assert {topic: kind for topic, (kind, _) in found.items()} == expected
             assert found["/joint_states"][1] == steps
             assert found["/cmd_vel"][1] == summary["commands_received"]
+            assert found["/tf"][1] == steps  # ROS from pip cannot publish it; the bag has it
+            tf = [c for c in reader.connections if c.topic == "/tf"]
+            first = reader.deserialize(next(reader.messages(connections=tf))[2], tf[0].msgtype)
+            children = {transform.child_frame_id for transform in first.transforms}
+            assert {"camera_optical_frame", "target", "base_link"} <= children
             commands = {}
             cmd_vel = [c for c in reader.connections if c.topic == "/cmd_vel"]
             for connection, stamp, raw in reader.messages(connections=cmd_vel):

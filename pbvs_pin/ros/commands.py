@@ -42,7 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser, output: Callable, scenario_of
     Args:
         parser: The ``ros`` subcommand's parser.
         output: Declares an argument naming a file the command writes
-            (:func:`pbvs_pin.cli.output_option`).
+            (:func:`pbvs_pin.outputs.output_option`).
         scenario_of: The scenario of a namespace with ``scenario``, ``robot``, ``set``,
             ``engine`` and ``duration`` (:func:`pbvs_pin.cli._run_scenario`).
     """
@@ -104,9 +104,10 @@ def add_arguments(parser: argparse.ArgumentParser, output: Callable, scenario_of
         default=0.0,
         help="wait up to this long [s] for a controller node before starting",
     )
-    sim.add_argument(
-        "--bag", help="record every topic into this new folder: a rosbag2 bag, MCAP storage"
-    )
+    output(
+        sim, "--bag", Output.NEW_FOLDER,
+        help="record every topic, and TF, into this new folder: a rosbag2 bag, MCAP storage",
+    )  # fmt: skip
     output(sim, "--summary", Output.FILE, help="write the true feature error here (JSON)")
     sim.add_argument("--ros-args", **ros_args)
     sim.set_defaults(handler=partial(_sim, scenario_of=scenario_of))

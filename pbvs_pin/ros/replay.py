@@ -27,6 +27,7 @@ from pbvs_pin.controller import Controller
 from pbvs_pin.exceptions import LogError
 from pbvs_pin.ros import messages
 from pbvs_pin.ros.node import frame_of, step_inputs
+from pbvs_pin.ros.run_bag import RUN_TOPIC
 from pbvs_pin.sim.detection import detector_from
 from pbvs_pin.sim.scenario import Scenario
 
@@ -58,6 +59,12 @@ def read_steps(path: str | Path) -> dict[int, dict[str, list]]:
     except Exception as err:  # rosbags raises its own types for a missing or bad bag
         raise LogError(str(path), f"expected a rosbag2 bag ({err})") from err
     try:
+        if any(c.topic == RUN_TOPIC for c in reader.connections):
+            raise LogError(
+                str(path),
+                "is a bag of `pbvs-pin run --bag`, written from the run's log at its 50 Hz, not "
+                "the readings of every control step; replay a bag of `pbvs-pin ros sim --bag`",
+            )
         connections = [c for c in reader.connections if c.topic in TOPICS]
         missing = {"/clock", "/cmd_vel"} - {c.topic for c in connections}
         if missing:

@@ -32,12 +32,13 @@ STRIP_PANELS = 8
 """Images in a strip, evenly spread over the run."""
 
 
-def eye_views(log: RunLog, samples: np.ndarray) -> list[np.ndarray]:
-    """The annotated camera images at the logged ``samples`` (indices), RGB ``uint8``.
+def eye_views(log: RunLog, samples: np.ndarray, marked: bool = True) -> list[np.ndarray]:
+    """The camera images at the logged ``samples`` (indices), RGB ``uint8``.
 
     Args:
         log: A run's log.
         samples: Indices into the log's instants. Shape (k,).
+        marked: Mark the detections and the desired features; False: as the camera saw.
 
     Returns:
         One image per sample, shape (H, W, 3).
@@ -59,7 +60,8 @@ def eye_views(log: RunLog, samples: np.ndarray) -> list[np.ndarray]:
             q = log["q"][i]
             centres = centres_from(log["target"][i] + half, facts.target_separation)
             image = scene.render(q, robot.camera_pose(q), centres)
-            images.append(annotate(image, camera, detector, facts.desired_points))
+            images.append(annotate(image, camera, detector, facts.desired_points) if marked
+                          else image.copy())  # fmt: skip
     finally:
         scene.close()
     return images
