@@ -4,8 +4,9 @@ Every subcommand prints a package error (:class:`pbvs_pin.exceptions.PbvsError`)
 on stderr, without a traceback, and exits with status 2. Every file or folder a subcommand
 writes is declared with :func:`pbvs_pin.outputs.output_option` and checked
 (:func:`pbvs_pin.outputs.check_output`) before the subcommand starts. Ctrl-C prints one line
-and exits with status 130; during a simulation it is held until the next logged instant (:mod:`pbvs_pin.interrupts`), so that it
-never lands inside compiled code, and the run so far is saved first (:class:`RunInterrupted`).
+and exits with status 130; during a simulation it is held until the next logged instant
+(:mod:`pbvs_pin.interrupts`), so that it never lands inside compiled code, and the run so far
+is saved first (:class:`RunInterrupted`).
 """
 
 from __future__ import annotations
