@@ -3,6 +3,7 @@ nothing lost or corrupt when a run is stopped, the disk is full or the viewer ca
 
 from __future__ import annotations
 
+import argparse
 import errno
 import os
 import re
@@ -19,7 +20,7 @@ from conftest import REPO_ROOT
 
 import pbvs_pin
 from pbvs_pin.catalogue import OTHER_ROBOTS
-from pbvs_pin.cli import main
+from pbvs_pin.cli import build_parser, main
 from pbvs_pin.exceptions import OutputError
 from pbvs_pin.report import ENGINE_ROBOTS
 from pbvs_pin.sim.log import RunLog
@@ -70,6 +71,29 @@ def test_list_names_robots_arms_scenarios_and_sweeps(capsys):
     for scenario in ("experiment1", "experiment2", "experiment3", "experiment4"):
         assert f"  {scenario}\n" in out
     assert "sweeps" in out and "  target_speed\n" in out
+
+
+def _parsers(parser, path=()):
+    """Every (sub)command's parser, with its words."""
+    yield path, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _parsers(sub, (*path, name))
+
+
+def test_no_option_states_its_default_twice():
+    """The formatter adds "(default: X)"; a help text that says it too read "(default mujoco)
+    (default: mujoco)" (ros sim's --engine, --rate-factor, --command-timeout)."""
+    parsers = list(_parsers(build_parser()))
+    assert len(parsers) > 12  # run, reproduce, ..., ros control/sim/replay-bag
+    for path, parser in parsers:
+        formatter = parser._get_formatter()
+        for action in parser._actions:
+            if action.help and action.help is not argparse.SUPPRESS:
+                text = formatter._expand_help(action)
+                assert text.count("(default") <= 1, (" ".join(path), action.dest, text)
+                assert ",," not in text and ", ," not in text, (" ".join(path), text)
 
 
 @pytest.mark.parametrize(

@@ -76,20 +76,20 @@ def add_arguments(parser: argparse.ArgumentParser, output: Callable, scenario_of
         "--engine",
         choices=("pinocchio", "mujoco"),
         default="mujoco",
-        help="physics of the plant (default mujoco)",
+        help="physics of the plant",
     )
     sim.add_argument("--duration", type=float, help="simulated time [s]")
     sim.add_argument(
         "--rate-factor",
         type=float,
         default=1.0,
-        help="simulated seconds per wall-clock second, at most (default 1)",
+        help="simulated seconds per wall-clock second, at most",
     )
     sim.add_argument(
         "--command-timeout",
         type=float,
         default=0.1,
-        help="age [s] past which a command is replaced by zero (default 0.1)",
+        help="age [s] past which a command is replaced by zero",
     )
     sim.add_argument(
         "--lockstep",
