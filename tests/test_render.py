@@ -14,7 +14,7 @@ from conftest import REPO_ROOT
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import load_robot
 from pbvs_pin.claims import claim_met
-from pbvs_pin.exceptions import ScenarioError
+from pbvs_pin.exceptions import PbvsWarning, ScenarioError
 from pbvs_pin.report import (
     RENDERED_BEGIN,
     RENDERED_COLUMNS,
@@ -297,5 +297,84 @@ def test_scene_places_the_robot_where_pinocchio_does(name):
         pose = robot.camera_pose(q)
         assert np.allclose(renderer.data.xpos[body], pose.translation, atol=1e-6)
         assert np.allclose(renderer.data.xmat[body].reshape(3, 3), pose.rotation, atol=1e-6)
+    finally:
+        renderer.close()
+
+
+# ------------------------------------------------------------ what the camera sees of its robot
+FT_DISC = (0.025, 0.00975)
+"""TIAGo's ``wrist_ft_tool_link`` in its URDF: a cylinder (radius, length) [m] along the link's x."""
+
+
+def test_a_camera_behind_its_own_wrist_disc_sees_only_the_disc_and_is_warned(robot, scene):
+    """TIAGo's camera (the recipe's mount) sits on the axis of its wrist's force-torque disc,
+    behind it, looking through it: the rendered camera sees nothing else.
+
+    Hand-computed reference: the disc's rim, seen from the camera, spans a half-angle wider
+    than the image's half-diagonal field of view, so it covers every pixel. The reference robot
+    sees none of itself.
+    """
+    tiago = load_robot("tiago", CAMERA)
+    q = tiago.home()
+    pin.framesForwardKinematics(tiago.model, tiago.data, q)
+    link = tiago.data.oMf[tiago.model.getFrameId("wrist_ft_tool_link")]
+    camera = tiago.camera_pose(q)
+    position = link.actInv(camera.translation)
+    axis = link.rotation.T @ camera.rotation[:, 2]  # the optical axis in the link's frame
+    radius, length = FT_DISC
+    assert np.hypot(position[1], position[2]) < 1e-9 and axis[0] == pytest.approx(1.0)
+    distance = -position[0] - length / 2  # to the disc's back face, ahead of the camera
+    assert distance > 0.0
+    half_diagonal = np.arctan(np.hypot(CAMERA.width, CAMERA.height) / 2 / CAMERA.focal_px)
+    assert np.arctan(radius / distance) > half_diagonal
+    renderer = SceneRenderer(tiago, CAMERA, DIAMETER, [])
+    try:
+        shares = renderer.robot_in_view(q, camera, pair([1.0, 0.0, 0.5]))
+    finally:
+        renderer.close()
+    assert shares == {"wrist_ft_tool_link": pytest.approx(1.0)}
+    reference = robot.home()
+    assert scene.robot_in_view(reference, robot.camera_pose(reference), pair([1.5, 0, 0.6])) == {}
+    scenario = load_scenario("experiment1").with_values(
+        **{"robot.name": "tiago", "camera.model": "rendered"}
+    )
+    with pytest.warns(PbvsWarning, match="robot's own links cover 100 % of the image") as caught:
+        build(scenario)
+    said = next(str(w.message) for w in caught if "own links" in str(w.message))
+    assert "tiago.urdf" in said and "wrist_ft_tool_link 100 %" in said
+
+
+def test_visual_meshes_mujoco_cannot_read_are_drawn_with_their_collision_geometry():
+    """Vega-1's visual meshes are glTF (.glb), which MuJoCo does not decode: the scene raised
+    a raw ValueError. Now those links are drawn with their collision meshes, with a warning."""
+    path = REPO_ROOT / "robots" / "vega_1.toml"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # placement warnings
+        table = read_toml(path, "robot file")["robot"]
+        vega = RobotSection.from_toml(table, str(path)).build(CAMERA)
+    with pytest.warns(PbvsWarning, match=r"collision geometry: MuJoCo reads .* not their visual "
+                                         r"meshes \(\.glb\)"):  # fmt: skip
+        renderer = SceneRenderer(vega, CAMERA, DIAMETER, [])
+    try:
+        q = vega.home()
+        drawn = renderer.model.body("base").geomnum[0]
+        assert drawn > 0  # the base has geometry to draw
+        image = renderer.render(q, vega.camera_pose(q), pair([1.0, 0.0, 0.5]))
+        assert image.shape == (CAMERA.height, CAMERA.width, 3)
+    finally:
+        renderer.close()
+
+
+def test_a_flat_mesh_does_not_stop_the_scene():
+    """Stretch RE1's ArUco marker meshes are flat: MuJoCo refused their volume ("mesh volume
+    is too small") when it built the scene, a raw ValueError; the scene weighs nothing."""
+    path = REPO_ROOT / "robots" / "stretch_re1.toml"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        table = read_toml(path, "robot file")["robot"]
+        stretch = RobotSection.from_toml(table, str(path)).build(CAMERA)
+        renderer = SceneRenderer(stretch, CAMERA, DIAMETER, [])
+    try:
+        assert renderer.model.body("link_aruco_right_base").geomnum[0] > 0
     finally:
         renderer.close()

@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import os
 import sys
+import warnings
+from pathlib import Path
 
 if "mujoco" not in sys.modules:
     os.environ.setdefault("MUJOCO_GL", "egl")
@@ -37,7 +39,7 @@ from lxml import etree
 
 from pbvs_pin import frames
 from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.exceptions import RenderingUnavailable, UrdfError
+from pbvs_pin.exceptions import PbvsWarning, RenderingUnavailable, UrdfError
 from pbvs_pin.robot import MobileManipulator
 from pbvs_pin.sim.detection import SPHERE_HUES, sphere_rgba
 from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle, Obstacle
@@ -53,6 +55,23 @@ FLOOR_RGB = ((0.45, 0.45, 0.45), (0.6, 0.6, 0.6))
 
 NEAR_CLIP = 0.01
 """Distance [m] from the camera of the near clipping plane."""
+
+
+MESH_FORMATS = (".stl", ".obj", ".msh")
+"""Mesh files MuJoCo decodes without a plugin (a URDF's ``.glb``, ``.gltf`` or ``.dae`` not)."""
+
+
+def _drawable(geom: mujoco.MjsGeom, files: dict[str, str]) -> bool:
+    """Whether MuJoCo can draw ``geom`` (a primitive, or a mesh in :data:`MESH_FORMATS`)."""
+    if geom.type != mujoco.mjtGeom.mjGEOM_MESH:
+        return True
+    return files.get(geom.meshname, "").lower().endswith(MESH_FORMATS)
+
+
+def _formats(files: dict[str, str]) -> str:
+    """The file formats of meshes MuJoCo cannot decode, e.g. ``.glb``."""
+    found = {Path(file).suffix.lower() for file in files.values()}
+    return ", ".join(sorted(found - set(MESH_FORMATS)))
 
 
 def _visual_urdf(robot: MobileManipulator) -> str:
@@ -88,13 +107,35 @@ def scene_spec(
     except ValueError as err:
         raise UrdfError(robot.source, f"MuJoCo cannot read the URDF: {err}") from err
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    files = {mesh.name: mesh.file for mesh in spec.meshes}
+    undrawable = []
     for body in spec.bodies:
         body.mass, body.inertia, body.fullinertia = 1.0, [1.0, 1.0, 1.0], [np.nan] * 6
+        # MuJoCo's URDF importer puts visual geometry in group 1, collision geometry in 0
+        visual = [geom for geom in body.geoms if geom.group == 1]
+        drawn = 1 if all(_drawable(geom, files) for geom in visual) else 0
+        if not drawn:
+            undrawable.append(body.name)
         for geom in body.geoms:
-            if geom.group != 1:  # MuJoCo's URDF importer puts visual geometry in group 1
+            if geom.group != drawn or not _drawable(geom, files):
                 spec.delete(geom)
             else:
                 geom.group = 0
+    for mesh in list(spec.meshes):  # an unused mesh is still read when the model compiles
+        if not mesh.file.lower().endswith(MESH_FORMATS):
+            spec.delete(mesh)
+        else:  # drawn, never weighed: a flat mesh's volume must not stop the build (Stretch)
+            mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+    if undrawable:
+        more = len(undrawable) - 5
+        links = ", ".join(undrawable[:5]) + (f" and {more} more" if more > 0 else "")
+        warnings.warn(
+            f"{robot.source}: rendered camera: links {links} are drawn with "
+            f"their collision geometry: MuJoCo reads {', '.join(MESH_FORMATS)} meshes, not "
+            f"their visual meshes ({_formats(files)})",
+            PbvsWarning,
+            stacklevel=2,
+        )
     # the model's planar joint sits at the URDF's root link: the drive footprint of a
     # differential drive, the platform's own root link on a holonomic base
     spec.worldbody.first_body().add_freejoint(name=frames.DRIVE_FOOTPRINT)
@@ -194,7 +235,12 @@ class SceneRenderer:
         obstacles: list[Obstacle],
     ) -> None:
         self.robot, self.camera, self.diameter = robot, camera, diameter
-        self.model = scene_spec(robot, camera, diameter, obstacles).compile()
+        try:
+            self.model = scene_spec(robot, camera, diameter, obstacles).compile()
+        except ValueError as err:  # a mesh MuJoCo cannot read or build
+            raise UrdfError(
+                robot.source, f"rendered camera: MuJoCo cannot build the scene: {err}"
+            ) from err
         self.data = mujoco.MjData(self.model)
         model = self.model
         self._arm_qpos = np.array([model.joint(n).qposadr[0] for n in robot.arm_joint_names])
@@ -245,6 +291,61 @@ class SceneRenderer:
         self.renderer.update_scene(data, camera="eye")
         return self.renderer.render()
 
+    def robot_in_view(
+        self, q: np.ndarray, camera_pose: pin.SE3, centres: np.ndarray
+    ) -> dict[str, float]:
+        """The share of the image each of the robot's own links covers, seen from ``camera_pose``.
+
+        Args:
+            q: Configuration of the robot (controller's model). Shape (nq,).
+            camera_pose: ``world_T_camera`` of the optical frame.
+            centres: Sphere centres [m], upper first. Shape (2, 3).
+
+        Returns:
+            Link name to its share of the pixels (0-1), largest first; links not seen omitted.
+        """
+        self.render(q, camera_pose, centres)
+        self.renderer.enable_segmentation_rendering()
+        try:
+            segments = self.renderer.render()
+        finally:
+            self.renderer.disable_segmentation_rendering()
+        model = self.model
+        geoms = segments[..., 0][segments[..., 1] == mujoco.mjtObj.mjOBJ_GEOM]
+        shares: dict[str, float] = {}
+        for geom, pixels in zip(*np.unique(geoms, return_counts=True), strict=True):
+            body = model.geom_bodyid[geom]
+            name = model.body(body).name
+            if body == 0 or name.startswith("sphere"):  # the floor, the obstacles, the target
+                continue
+            shares[name] = shares.get(name, 0.0) + pixels / segments[..., 0].size
+        return dict(sorted(shares.items(), key=lambda item: -item[1]))
+
     def close(self) -> None:
         """Release the OpenGL context."""
         self.renderer.close()
+
+
+SELF_VIEW_WARNING = 0.2
+"""Share of the image covered by the robot's own links at the start above which the rendered
+camera warns (TIAGo Pro's camera in ``arm_right_tool_link`` sees 82 % of its own hand)."""
+
+
+def warn_self_view(shares: dict[str, float], source: str) -> None:
+    """Warn, naming ``source`` and the links, if the robot covers much of its camera's view.
+
+    Args:
+        shares: Link name to its share of the image (:meth:`SceneRenderer.robot_in_view`).
+        source: The robot's file, named in the warning.
+    """
+    total = sum(shares.values())
+    if total <= SELF_VIEW_WARNING:
+        return
+    seen = ", ".join(f"{name} {100 * share:.0f} %" for name, share in list(shares.items())[:4])
+    warnings.warn(
+        f"{source}: rendered camera: at the start the robot's own links cover "
+        f"{100 * total:.0f} % of the image ({seen}); the target behind them is not seen. Move "
+        "the camera where it sees past the robot (camera_link, camera_pose)",
+        PbvsWarning,
+        stacklevel=2,
+    )

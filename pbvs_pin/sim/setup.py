@@ -240,7 +240,7 @@ def _rendered_camera(
 ) -> RenderedCamera:
     """The rendered camera of ``camera.model = "rendered"``, reading the true plant."""
     from pbvs_pin.sim.detection import detector_from  # OpenCV and MuJoCo only when rendering
-    from pbvs_pin.sim.render import SceneRenderer
+    from pbvs_pin.sim.render import SceneRenderer, warn_self_view
     from pbvs_pin.sim.rendered_camera import RENDER_STREAM, ImageEffects, RenderedCamera
 
     spec = scenario.camera
@@ -249,6 +249,9 @@ def _rendered_camera(
         spec.image_noise, spec.exposure_time, spec.light_change_time, spec.light_change_scale
     )
     scene = SceneRenderer(robot, camera, target.diameter, list(scenario.obstacles))
+    q = plant.q
+    shares = scene.robot_in_view(q, robot.camera_pose(q), target.centres(0.0))
+    warn_self_view(shares, robot.source)
     rng = np.random.default_rng([scenario.simulation.seed, RENDER_STREAM])
     return RenderedCamera(
         robot, scene, plant, target, detector_from(spec.detector, camera), effects, rng
