@@ -94,3 +94,27 @@ def test_replay_shows_the_eye_view_at_the_animation_time(run, tmp_path):
     # a 50 Hz log of 0.4 s keyed at 10 Hz: keys at 0, 0.1, 0.2, 0.3 and 0.38 s
     assert early["key"] == 0 and late["key"] == 2 and shown["key"] == 3
     assert shown["width"] == 628 // 2 and shown["src"] > 1000
+
+
+def test_a_logged_robot_from_a_robot_file_names_that_file_when_rebuilt():
+    """The eye view, the replay and the bag rebuild the robot from the log: its warnings named
+    the scenario's file (experiment1.toml), not the robot file the table came from."""
+    import warnings
+
+    from conftest import REPO_ROOT
+
+    from pbvs_pin.exceptions import PbvsWarning
+    from pbvs_pin.experiments import with_robot
+    from pbvs_pin.sim.loop import simulate
+    from pbvs_pin.viz.run_scene import log_robot
+
+    path = REPO_ROOT / "robots" / "vega_1.toml"  # warns: wheel links below the floor
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scenario = with_robot(load_scenario("experiment1"), str(path))
+        log = simulate(scenario.with_values(duration=0.2), progress=False)
+    assert log.meta["robot_source"] == str(path)
+    with pytest.warns(PbvsWarning) as caught:
+        log_robot(log)
+    said = [str(w.message) for w in caught if "below the floor" in str(w.message)]
+    assert said and all(message.startswith(f"{path}: ") for message in said)

@@ -124,7 +124,8 @@ class Setup:
         """The robot in a log's meta: its label, table and the inertias changed on loading.
 
         ``robot`` is a label; ``robot_table`` is the ``[robot]`` table the robot was built
-        from (None for a robot given from Python, whose label is its source);
+        from (None for a robot given from Python, whose label is its source), and
+        ``robot_source`` the file it was read from (a robot file, or the scenario);
         ``inertia_repaired`` lists the links whose inertia ``repair_inertia`` changed,
         ``inertia_from_geometry`` those that ``geometry_density`` gave an inertia.
         """
@@ -137,6 +138,7 @@ class Setup:
         return {
             "robot": self.scenario.robot.label,
             "robot_table": self.scenario.robot.to_toml(),
+            "robot_source": self.scenario.robot.source,
             **repaired,
         }
 

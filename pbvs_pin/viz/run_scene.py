@@ -274,7 +274,8 @@ def log_robot(log: RunLog) -> MobileManipulator:
     intrinsics = CameraIntrinsics(camera["focal_px"], camera["width"], camera["height"])
     table = log.meta.get("robot_table")
     if table:
-        return RobotSection.from_toml(table, log.meta.get("source", "")).build(intrinsics)
+        source = log.meta.get("robot_source") or log.meta.get("source", "")  # older logs
+        return RobotSection.from_toml(table, source).build(intrinsics)
     return build_robot(log.meta["robot"], intrinsics)
 
 
