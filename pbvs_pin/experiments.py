@@ -28,9 +28,7 @@ from pbvs_pin.interrupts import (
     stage,
     with_interrupt_point,
 )
-from pbvs_pin.report import (
-    CLAIMS,
-)
+from pbvs_pin.report import CLAIMS
 from pbvs_pin.sim.log import (
     RunLog,
     check_writable,
@@ -203,5 +201,3 @@ def with_robot(scenario: Scenario, robot: str) -> Scenario:
     raw["robot"] = table
     changed = parse_scenario(raw, scenario.source)
     return changed if own is None else replace(changed, robot=own)
-
-

@@ -30,7 +30,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import pinocchio as pin
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CompressedImage
 from std_msgs.msg import String
@@ -38,7 +37,7 @@ from std_msgs.msg import String
 from pbvs_pin import frames
 from pbvs_pin.ros import messages
 from pbvs_pin.ros.bag import BagRecorder
-from pbvs_pin.ros.tf import TARGET_FRAME, TF_TYPE, link_poses, tf_message
+from pbvs_pin.ros.tf import TF_TYPE, tf_message
 from pbvs_pin.sim.log import RunLog, json_safe
 from pbvs_pin.viz.run_scene import log_robot
 
@@ -96,9 +95,8 @@ def write_run_bag(log: RunLog, path: str | Path, images: bool = True) -> Path:
         bag.write(RUN_TOPIC, String(data=meta), float(t[0]))
         for i, now in enumerate(map(float, t)):
             bag.write("/clock", Clock(clock=messages.stamp(now)), now)
-            target = _target_pose(log["target"][i])
-            poses = [*link_poses(robot, q[i]), (TARGET_FRAME, target)]
-            bag.write_serialised("/tf", TF_TYPE, tf_message(now, poses), now)
+            tf = tf_message(now, robot, q[i], log["target"][i])
+            bag.write_serialised("/tf", TF_TYPE, tf, now)
             arm = robot.arm_positions(q[i])
             bag.write("/joint_states", messages.joint_state(now, names, arm, v[i, n_base:]), now)
             planar = log["platform_pose"][i]
@@ -124,11 +122,6 @@ def _views(log: RunLog, samples: np.ndarray) -> list[np.ndarray]:
     from pbvs_pin.viz.eye_view import eye_views
 
     return eye_views(log, samples, marked=False)
-
-
-def _target_pose(midpoint: np.ndarray) -> pin.SE3:
-    """The target's midpoint as a pose in ``odom`` (no rotation)."""
-    return pin.SE3(np.eye(3), np.asarray(midpoint, dtype=float))
 
 
 def _diagnostics(log: RunLog, i: int, error: np.ndarray):

@@ -25,7 +25,6 @@ from collections import deque
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 from geometry_msgs.msg import Twist
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -35,7 +34,7 @@ from std_msgs.msg import Float64MultiArray
 
 from pbvs_pin import frames
 from pbvs_pin.ros import messages
-from pbvs_pin.ros.tf import TARGET_FRAME, TF_TYPE, link_poses, tf_message
+from pbvs_pin.ros.tf import TF_TYPE, tf_message
 from pbvs_pin.sim.scenario import Scenario
 from pbvs_pin.sim.sensing import Sensing, planar_pose
 from pbvs_pin.sim.setup import build
@@ -220,9 +219,8 @@ class SimRobot(Node):
             self.send(self.info, info)
             self.send(self.image, image)
         if self.bag is not None:  # TF into the bag only: ROS from pip cannot publish it
-            target = pin.SE3(np.eye(3), setup.target.midpoint(t))
-            poses = [*link_poses(self.robot, setup.plant.q), (TARGET_FRAME, target)]
-            self.bag.write_serialised("/tf", TF_TYPE, tf_message(t, poses), t)
+            tf = tf_message(t, self.robot, setup.plant.q, setup.target.midpoint(t))
+            self.bag.write_serialised("/tf", TF_TYPE, tf, t)
         self.send(self.clock, Clock(clock=messages.stamp(t)))  # last: the readings of t are out
 
     def true_error(self) -> np.ndarray:

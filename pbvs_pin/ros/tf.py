@@ -48,13 +48,19 @@ def link_poses(robot: MobileManipulator, q: np.ndarray) -> list[tuple[str, pin.S
     return [*poses, (frames.CAMERA_OPTICAL, robot.camera_pose(q))]
 
 
-def tf_message(t: float, poses: list[tuple[str, pin.SE3]]) -> bytes:
-    """``/tf`` of ``poses`` (child frame, pose in ``odom``) stamped ``t`` [s], serialised (CDR).
+def tf_message(t: float, robot: MobileManipulator, q: np.ndarray, target: np.ndarray) -> bytes:
+    """``/tf`` at time ``t`` [s], serialised (CDR): the links and the target, in ``odom``.
+
+    Every link as :func:`link_poses` gives it, then the target's midpoint
+    (:data:`TARGET_FRAME`, no rotation).
 
     Args:
         t: The time [s].
-        poses: Child frame names and their poses in ``odom``.
+        robot: The robot.
+        q: Its configuration. Shape (nq,).
+        target: The target's midpoint [m] in ``odom``. Shape (3,).
     """
+    poses = [*link_poses(robot, q), (TARGET_FRAME, pin.SE3(np.eye(3), np.asarray(target, float)))]
     types: Any = TYPESTORE.types
     sec, nanosec = divmod(round(t * 1e9), 1_000_000_000)
     header = types["std_msgs/msg/Header"](

@@ -112,12 +112,12 @@ def scene_spec(
     for body in spec.bodies:
         body.mass, body.inertia, body.fullinertia = 1.0, [1.0, 1.0, 1.0], [np.nan] * 6
         # MuJoCo's URDF importer puts visual geometry in group 1, collision geometry in 0
-        visual = [geom for geom in body.geoms if geom.group == 1]
-        drawn = 1 if all(_drawable(geom, files) for geom in visual) else 0
+        geoms = [(geom, _drawable(geom, files)) for geom in body.geoms]
+        drawn = 1 if all(ok for geom, ok in geoms if geom.group == 1) else 0
         if not drawn:
             undrawable.append(body.name)
-        for geom in body.geoms:
-            if geom.group != drawn or not _drawable(geom, files):
+        for geom, ok in geoms:
+            if geom.group != drawn or not ok:
                 spec.delete(geom)
             else:
                 geom.group = 0
