@@ -362,7 +362,8 @@ def find_drive_axle(source: UrdfSource) -> DriveAxle:
 
     A wheel is a continuous or revolute joint about the platform's y axis, hanging from the
     root link through fixed joints, with no movable joint below it (a mounted arm whose first
-    joint pitches about y is not a wheel).
+    joint pitches about y is not a wheel), off the platform's centreline (a one-joint arm
+    pitching about y is not either).
 
     Args:
         source: The platform's (or whole robot's) description.
@@ -406,6 +407,7 @@ def find_drive_axle(source: UrdfSource) -> DriveAxle:
             f"{root!r} through fixed joints, on both sides (y > 0 and y < 0); found {found}. "
             f"{DRIVE_ADVICE}",
         )
+    wheels = left + right  # a joint on the centreline (an arm's pitch joint) drives no axle
     radii, speeds = [], []
     for joint, _ in wheels:
         radius = _wheel_radius(links[joint.child])

@@ -45,14 +45,14 @@ PAPER_CLAIMS = {name: claim.text for name, claim in CLAIMS.items()}
 
 def run_scenario(
     scenario: str | Path | Scenario,
-    out: Path,
-    html: Path | None = None,
+    out: str | Path,
+    html: str | Path | None = None,
     progress: bool = True,
     observer: Callable[[Snapshot], None] | None = None,
     figures: bool = True,
     status: Callable[[str], None] | None = None,
     eye_view: str | None = None,
-    bag: Path | None = None,
+    bag: str | Path | None = None,
 ) -> tuple[RunLog, dict[str, Any]]:
     """Simulate one scenario; write ``log.npz``, ``summary.json`` and figures into ``out``.
 
@@ -89,6 +89,9 @@ def run_scenario(
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
+    out = as_path("out", out)
+    html = None if html is None else as_path("html", html)
+    bag = None if bag is None else as_path("bag", bag)
     check_writable(out, *([html] if html is not None else []))
     if eye_view not in (None, "strip", "video"):
         raise GainError(f"eye view: expected 'strip' or 'video', got {eye_view!r}", "eye_view")

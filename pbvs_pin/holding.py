@@ -8,6 +8,9 @@ neither the joint nor the cause. Link masses the user chose (``geometry_density`
 mesh solid) or an arm on a joint made for a lighter one both lead there.
 :func:`overloaded_joints` finds those joints from the gravity torque ``g(q)`` (Pinocchio's
 ``computeGeneralizedGravity``) at home, and :func:`warn_overloaded` warns, naming them.
+:func:`holding_rows` states the same as rows the home solver keeps non-negative
+(:mod:`pbvs_pin.home`), so that a home that overloads a joint is searched again with every
+joint's load a stated share below its limit.
 """
 
 from __future__ import annotations
@@ -41,6 +44,46 @@ def overloaded_joints(robot: MobileManipulator, q: np.ndarray) -> list[tuple[str
         if np.isfinite(limit) and 0.0 < limit < load:
             found.append((name, load, limit))
     return found
+
+
+def _limited(robot: MobileManipulator) -> tuple[np.ndarray, np.ndarray]:
+    """Velocity indices of the arm joints with an effort limit, shape (k,), and the limits."""
+    model = robot.model
+    index = np.array(
+        [model.joints[model.getJointId(name)].idx_v for name in robot.arm_joint_names], dtype=int
+    )
+    limit = np.asarray(model.effortLimit, dtype=float)[index]
+    given = np.isfinite(limit) & (limit > 0.0)  # effort <= 0 in a URDF: not given
+    return index[given], limit[given]
+
+
+def holding_rows(
+    robot: MobileManipulator, q: np.ndarray, margin: float
+) -> tuple[np.ndarray, np.ndarray]:
+    r"""Rows that are non-negative when every limited arm joint holds ``q`` with ``margin`` spare.
+
+    .. math:: h_i(q) = 1 - \text{margin} - \frac{|g_i(q)|}{\tau_i^{max}}
+
+    for each arm joint ``i`` with an effort limit ``tau_max`` (``g`` from Pinocchio's
+    ``computeGeneralizedGravity``, its derivative from ``computeGeneralizedGravityDerivatives``).
+
+    Args:
+        robot: The robot.
+        q: Configuration. Shape (nq,).
+        margin: Share of each limit kept spare (for the motion), in [0, 1).
+
+    Returns:
+        ``h`` (dimensionless), shape (k,), and ``dh/dtheta`` in the arm joints, shape
+        (k, n_arm); k = 0 for a robot without effort limits.
+    """
+    model = robot.model
+    index, limit = _limited(robot)
+    data = model.createData()
+    gravity = pin.computeGeneralizedGravity(model, data, q)[index]
+    slope = pin.computeGeneralizedGravityDerivatives(model, data, q)[index]
+    arm_columns = robot.selection[:, robot.n_base :]
+    rows = 1.0 - margin - np.abs(gravity) / limit
+    return rows, -(np.sign(gravity) / limit)[:, None] * (slope @ arm_columns)
 
 
 def warn_overloaded(robot: MobileManipulator, where: str) -> list[tuple[str, float, float]]:

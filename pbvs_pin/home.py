@@ -51,6 +51,13 @@ normals of the polygon's edges through its vertices ``v_i``): a residual
 :math:`[-s_i]_+` (weight 1 rad/m) in step 1, an inequality in step 2. A posture that does not
 tip is returned as found.
 
+Likewise a joint must hold the home against gravity: the simulated servos clip each torque to
+the URDF's effort limit (:mod:`pbvs_pin.servo`). If the posture found loads an arm joint past
+its limit (a PR2's shoulder, whose spring counterbalance the URDF does not model), steps 1 and
+2 run again with the rows :math:`h_i = 1 - \text{effort\_margin} - |g_i(\theta)| /
+\tau_i^{max} \ge 0` (:func:`pbvs_pin.holding.holding_rows`; ``g`` Pinocchio's gravity
+torque), kept like the support rows. A posture that holds is returned as found.
+
 The result is deterministic and depends on the model only: the starts are the zero posture
 (clipped to the bounds), the middle of the bounds, and ``starts`` postures drawn with
 ``numpy.random.default_rng(seed)``.
@@ -66,6 +73,7 @@ import pinocchio as pin
 from scipy.optimize import least_squares, minimize
 
 from pbvs_pin.exceptions import GainError, HomeNotFound
+from pbvs_pin.home_conditions import Condition, conditions
 from pbvs_pin.joint_angles import arm_difference
 from pbvs_pin.manipulability import arm_manipulability
 from pbvs_pin.robot import MobileManipulator
@@ -93,9 +101,11 @@ LOCKED_WIDTH = 1e-9
 _KEEP = 1e-5
 """How much [rad or m] step 2 may lose on step 1's orientation error and band violation."""
 
-_BALANCE_WEIGHT = 1.0
-"""Weight [rad/m] of the centre of mass's shortfall in step 1 (:class:`_Balance`): as much as
-the orientation, since a home that tips the platform is no home."""
+_KEPT_WEIGHT = 1.0
+"""Weight of a kept row's shortfall in step 1: 1 rad per m of the centre of mass's
+(:class:`~pbvs_pin.home_conditions.Balance`) and 1 rad per effort limit of a joint's load
+(:class:`~pbvs_pin.home_conditions.Holding`), as much as
+the orientation, since a home that tips the platform or sags is no home."""
 
 
 @dataclass(frozen=True)
@@ -119,6 +129,9 @@ class HomeCriteria:
         com_margin: Least distance [m] the centre of mass keeps inside the platform's support
             polygon when the home found without it would tip the platform (a home that does
             not tip is kept as found); None: tipping is not considered.
+        effort_margin: Share of each arm joint's effort limit its gravity load keeps spare
+            when the home found without it loads a joint past its limit (a home every joint
+            holds is kept as found); None: the loads are not considered.
     """
 
     min_height: float = 0.5
@@ -130,6 +143,7 @@ class HomeCriteria:
     posture_weight: float = 0.2
     max_forward_error: float = np.radians(10.0)
     com_margin: float | None = 0.05
+    effort_margin: float | None = 0.2
 
     def __post_init__(self) -> None:
         """Reject an empty band, a non-positive tolerance, a margin outside [0, 0.5) or < 0."""
@@ -141,6 +155,12 @@ class HomeCriteria:
                     f"HomeCriteria.com_margin: expected >= 0 m or None, got {self.com_margin}",
                     "com_margin",
                 )
+        if self.effort_margin is not None and not 0.0 <= self.effort_margin < 1.0:
+            raise GainError(
+                f"HomeCriteria.effort_margin: expected in [0, 1) or None, got "
+                f"{self.effort_margin}",
+                "effort_margin",
+            )
         for low, high in (("min_height", "max_height"), ("min_ahead", "max_ahead")):
             if not getattr(self, high) > getattr(self, low):
                 raise GainError(
@@ -234,61 +254,32 @@ def assess_home(robot: MobileManipulator, arm: npt.ArrayLike) -> HomeAssessment:
     )
 
 
-class _Balance:
-    r"""The centre of mass kept ``margin`` inside a convex support polygon, platform at the origin.
-
-    Rows :math:`s_i(\theta) = n_i^\top (c_{xy}(\theta) - v_i) - \text{margin} \ge 0`, with
-    ``v_i`` the polygon's vertices (counter-clockwise), ``n_i`` its edges' inward unit normals
-    and ``c`` Pinocchio's centre of mass of the whole robot (``pin.centerOfMass``), whose
-    Jacobian ``pin.jacobianCenterOfMass`` gives :math:`\partial s / \partial \theta`.
-    """
-
-    def __init__(self, robot: MobileManipulator, vertices: np.ndarray, margin: float) -> None:
-        self.robot, self.margin = robot, margin
-        edges = np.roll(vertices, -1, axis=0) - vertices
-        normals = np.stack([-edges[:, 1], edges[:, 0]], axis=1)
-        self.normals = normals / np.linalg.norm(normals, axis=1)[:, None]
-        self.offsets = np.sum(self.normals * vertices, axis=1) + margin
-        self.arm_columns = robot.selection[:, robot.n_base :]
-
-    def slack(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Rows ``s`` [m], shape (k,), and their Jacobian in the arm joints, shape (k, n_arm)."""
-        robot = self.robot
-        jacobian = pin.jacobianCenterOfMass(robot.model, robot.data, q)
-        centre = robot.data.com[0][:2]
-        return self.normals @ centre - self.offsets, self.normals @ (
-            jacobian[:2] @ self.arm_columns
-        )
-
-    def shortfall(self, q: np.ndarray) -> float:
-        """How far [m] the centre of mass lacks the margin (0 when it keeps it)."""
-        return max(0.0, -float(np.min(self.slack(q)[0])))
-
-
 class _Kinematics:
     """Camera pose and arm Jacobian at an arm posture, platform at the origin (cached).
 
     Attributes:
-        balance: The centre-of-mass rows both steps keep, or None.
+        kept: The rows both steps keep non-negative (:mod:`pbvs_pin.home_conditions`).
     """
 
     def __init__(self, robot: MobileManipulator) -> None:
         self.robot = robot
         self.base_q = robot.neutral()
         self._arm: np.ndarray | None = None
-        self.balance: _Balance | None = None
+        self.kept: list[Condition] = []
 
     def shortfall(self, arm: np.ndarray) -> float:
-        """:meth:`_Balance.shortfall` at ``arm`` (0 without balance)."""
-        if self.balance is None:
-            return 0.0
-        return self.balance.shortfall(self.robot.with_arm_positions(self.base_q, arm))
+        """The largest ``shortfall`` of the kept rows at ``arm`` (0 without any)."""
+        q = self.robot.with_arm_positions(self.base_q, arm)
+        return max((rows.shortfall(q) for rows in self.kept), default=0.0)
 
-    def balance_rows(self, arm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`_Balance.slack` at ``arm``; shapes (0,) and (0, n_arm) without balance."""
-        if self.balance is None:
-            return np.zeros(0), np.zeros((0, len(arm)))
-        return self.balance.slack(self.robot.with_arm_positions(self.base_q, arm))
+    def kept_rows(self, arm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The kept rows at ``arm`` and their Jacobian; shapes (k,) and (k, n_arm)."""
+        q = self.robot.with_arm_positions(self.base_q, arm)
+        parts = [rows.slack(q) for rows in self.kept]
+        return (
+            np.concatenate([np.zeros(0), *(value for value, _ in parts)]),
+            np.vstack([np.zeros((0, len(arm))), *(slope for _, slope in parts)]),
+        )
 
     def at(self, arm: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Rotation (3, 3), position (3,), ``dp/dtheta`` (3, n_arm), ``J_w`` LOCAL (3, n_arm)."""
@@ -346,21 +337,21 @@ def _stage_one(
 
     def residual(arm: np.ndarray) -> np.ndarray:
         error, slack, _, _ = parts(arm)
-        balance = kinematics.balance_rows(arm)[0]
+        kept = kinematics.kept_rows(arm)[0]
         return np.concatenate(
             [
                 pin.log3(error),
                 _BAND_WEIGHT * np.maximum(0.0, -slack),
-                _BALANCE_WEIGHT * np.maximum(0.0, -balance),
+                _KEPT_WEIGHT * np.maximum(0.0, -kept),
             ]
         )
 
     def jacobian(arm: np.ndarray) -> np.ndarray:
         error, slack, d_slack, jw = parts(arm)
         d_band = np.where((slack < 0.0)[:, None], -_BAND_WEIGHT * d_slack, 0.0)
-        balance, d_balance = kinematics.balance_rows(arm)
-        d_balance = np.where((balance < 0.0)[:, None], -_BALANCE_WEIGHT * d_balance, 0.0)
-        return np.vstack([pin.Jlog3(error) @ jw, d_band, d_balance])
+        kept, d_kept = kinematics.kept_rows(arm)
+        d_kept = np.where((kept < 0.0)[:, None], -_KEPT_WEIGHT * d_kept, 0.0)
+        return np.vstack([pin.Jlog3(error) @ jw, d_band, d_kept])
 
     return least_squares(
         residual, start, jac=jacobian, bounds=bounds, method="dogbox", max_nfev=_MAX_EVALUATIONS
@@ -388,8 +379,8 @@ def _stage_two(
             scale the posture weight. Shapes (n_arm,).
         reached: Assessment of the best step-1 posture: its orientation error and band
             violation (plus ``_KEEP``) bound those of the result.
-        shortfall: The best step-1 posture's shortfall [m] from the centre-of-mass margin
-            (:class:`_Balance`; plus ``_KEEP``, it bounds the result's).
+        shortfall: The best step-1 posture's shortfall from the kept rows
+            (:meth:`_Kinematics.shortfall`; plus ``_KEEP``, it bounds the result's).
 
     Returns:
         The posture, shape (n_arm,), and its cost; cost ``inf`` if it breaks the constraints.
@@ -426,12 +417,12 @@ def _stage_two(
         {"type": "ineq", "fun": orientation, "jac": orientation_jacobian},
         {"type": "ineq", "fun": band, "jac": band_jacobian},
     ]
-    if kinematics.balance is not None:
+    if kinematics.kept:
         constraints.append(
             {
                 "type": "ineq",
-                "fun": lambda arm: kinematics.balance_rows(arm)[0] + shortfall + _KEEP,
-                "jac": lambda arm: kinematics.balance_rows(arm)[1],
+                "fun": lambda arm: kinematics.kept_rows(arm)[0] + shortfall + _KEEP,
+                "jac": lambda arm: kinematics.kept_rows(arm)[1],
             }
         )
     result = minimize(
@@ -476,7 +467,9 @@ def compute_home(
             (:func:`pbvs_pin.mujoco_support.support_polygon`). A hull of fewer than three
             vertices, or ``criteria.com_margin`` None: tipping is not considered. If the
             camera cannot look forward with the centre of mass kept inside, the home found
-            without it is returned (the MuJoCo plant warns that it tips).
+            without it is returned (the MuJoCo plant warns that it tips). Likewise, with
+            ``criteria.effort_margin``, for a joint whose gravity load passes its effort
+            limit (the robot's loader warns).
 
     Returns:
         ``theta_h`` [rad or m], at least ``limit_margin`` of its range from each limit; a
@@ -506,22 +499,18 @@ def compute_home(
     guesses += [rng.uniform(*box) for _ in range(starts)]
     solve = (kinematics, criteria, guesses, (bounds, box), refine)
     arm = _solve(*solve)
-    if criteria.com_margin is None:
-        return _finish(robot, arm, locked, lower)
-    from pbvs_pin.mujoco_stability import convex_hull
-    from pbvs_pin.mujoco_support import support_polygon
-
-    support = support_polygon(robot) if support is None else convex_hull(support)
-    if support is None or len(support) < 3:  # nothing to stand on, or no inside
-        return _finish(robot, arm, locked, lower)
-    kinematics.balance = _Balance(robot, support, 0.0)
-    if kinematics.shortfall(arm) == 0.0:  # it does not tip: kept as found
-        return _finish(robot, arm, locked, lower)
-    kinematics.balance = _Balance(robot, support, criteria.com_margin)
-    try:
-        arm = _solve(*solve)
-    except HomeNotFound:  # balanced, the camera cannot look forward: the plant will warn
-        pass
+    # (test at zero margin, row kept with the criteria's margin) for tipping and sagging
+    checks = conditions(robot, criteria.com_margin, criteria.effort_margin, support)
+    for _ in checks:  # a row added can make a home break another: each is added once
+        q = robot.with_arm_positions(kinematics.base_q, arm)
+        added = [kept for test, kept in checks if kept not in kinematics.kept and test(q) > 0.0]
+        if not added:  # it neither tips nor sags: kept as found
+            break
+        kinematics.kept += added
+        try:
+            arm = _solve(*solve)
+        except HomeNotFound:  # kept, the camera cannot look forward: the plants will warn
+            break
     return _finish(robot, arm, locked, lower)
 
 
@@ -554,7 +543,7 @@ def _solve(
         key=lambda i: (
             assessed[i].orientation_error
             + _BAND_WEIGHT * assessed[i].band_violation(criteria)
-            + _BALANCE_WEIGHT * shortfalls[i]
+            + _KEPT_WEIGHT * shortfalls[i]
         ),
     )
     best, least = assessed[ranks[0]], shortfalls[ranks[0]]

@@ -142,6 +142,8 @@ def test_camera_that_cannot_look_forward_raises():
         ({"min_height": 1.0, "max_height": 0.9}, "max_height"),
         ({"min_ahead": 0.5, "max_ahead": 0.5}, "max_ahead"),
         ({"limit_margin": 0.5}, "limit_margin"),
+        ({"effort_margin": 1.0}, "effort_margin"),
+        ({"effort_margin": -0.1}, "effort_margin"),
     ],
 )
 def test_criteria_reject_empty_bands(kwargs, field):

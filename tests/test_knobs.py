@@ -26,6 +26,15 @@ BASE = {"duration": 2.0}
 OBSTACLE = {"secondary.obstacle_avoidance": True, "secondary.d0": 3.0}
 NEAR_LIMIT = {"robot.initial_arm": [0.0, 0.0, 0.55]}  # 0.05 rad below the elbow's upper limit
 ROLLING = {"robot.name": "pioneer_panda"}
+STRETCH = {  # an arm that cannot move the camera along its optical axis: the heading term acts
+    "robot.name": "",
+    "robot.base": "package://stretch_urdf/RE1V0/stretch_description_RE1V0_tool_none.urdf",
+    "robot.camera_link": "link_wrist_yaw",
+    "robot.camera_pose": [0.0, 0.0, 0.0, 1.5707963, 0.0, 1.5707963],
+    "robot.wheel_radius": 0.0508,
+    "robot.track": 0.3407,
+    "robot.wheel_speed_limit": 5.9,
+}
 OCCLUDED = {"camera.occlusion_starts": [0.5], "camera.occlusion_duration": 0.5}
 RENDERED = {"camera.model": "rendered"}
 DARK = {**RENDERED, "camera.light_change_scale": 0.05}  # spheres darker than the detector's floor
@@ -99,7 +108,7 @@ CASES = {  # key: (context, new value)
     "secondary.impedance_mass": (OBSTACLE, 1.0),
     "secondary.impedance_damping": (OBSTACLE, 2.0),
     "secondary.k_lambda": ({}, 2.0),
-    "secondary.k_heading": ({}, 1.0),
+    "secondary.k_heading": (STRETCH, 0.0),
     "laser.rate": (OBSTACLE, 10.0),
     "laser.beams": (OBSTACLE, 91),
     "laser.field_of_view": (OBSTACLE, 1.0),

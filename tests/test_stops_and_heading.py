@@ -15,6 +15,8 @@ from pbvs_pin.control.kinematic import PassivityController, ServoGains
 from pbvs_pin.control.secondary import (
     BaseHeading,
     SecondaryInput,
+    arm_depth_reach,
+    heading_factor,
     heading_share,
     heading_term,
 )
@@ -149,3 +151,20 @@ def test_stretch_re1_holds_experiment2_while_its_arm_sits_at_its_stops():
     last = t > t[-1] - 5.0
     error = np.abs(log["xi_true"] - log["xi_d"])[last]
     assert np.max(error) < 8.0
+
+
+def test_the_heading_gain_is_zero_for_an_arm_that_moves_the_camera_along_its_axis():
+    """Closed form: a prismatic column along the optical axis (v_z) versus one across it.
+
+    Columns ``[v; omega]``: a forward drive along the axis, a yaw, then the arm.
+    """
+    drive = np.array([[0, 0, 1.0, 0, 0, 0], [0.2, 0, 0, 0, 1.0, 0]]).T
+    across = np.array([[1.0, 0, 0, 0, 0, 0], [0, 0, 0.05, 0, 1.0, 0]]).T  # x; a pitch's z
+    along = np.array([[0, 0, 0.5, 0, 0, 0]]).T
+    limits = np.ones(4)
+    reach = arm_depth_reach(np.hstack([drive, across]), limits, 2)
+    assert reach == pytest.approx(0.0, abs=1e-12)  # the pitch's z comes with a turn
+    assert heading_factor(reach) == 1.0
+    reach = arm_depth_reach(np.hstack([drive, across[:, :1], along]), limits, 2)
+    assert reach == pytest.approx(0.5)
+    assert heading_factor(reach) == 0.0

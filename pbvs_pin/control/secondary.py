@@ -103,6 +103,50 @@ def heading_term(rotation: np.ndarray, q: np.ndarray, gain: float) -> float:
     return gain * np.sqrt(cx * cx + cy * cy) * psi
 
 
+DEPTH_REACH_FULL = 0.1
+"""Arm depth reach (:func:`arm_depth_reach`) at and above which the heading objective is off:
+between Stretch's (below 1e-4) and the smallest of the other two-wheel robots' (the Reach
+Bravo 7's 0.14), measured on every shipped and zoo robot at its home."""
+
+
+def arm_depth_reach(camera_jacobian: np.ndarray, velocity_limits: np.ndarray, n_base: int) -> float:
+    r"""How fast the arm alone moves the camera along its optical axis, without turning it.
+
+    .. math:: r = \frac{\| N(A_\omega)\, a_z \|}{|J_{z,1}|\, \bar u_1},\qquad
+              A = J_{arm} \operatorname{diag}(\bar u_{arm})
+
+    with ``a_z`` the row of ``A`` for the camera's speed along its optical axis (``v_z``),
+    ``N(A_omega)`` the projector onto the null space of its rows ``omega_x, omega_y`` (the
+    rotations that turn the optical axis), ``u_bar`` the velocity limits and the denominator
+    the platform's forward drive along the axis. ``r`` is the largest depth rate the arm makes
+    at its velocity limits while the camera keeps looking where it looks, per the platform's:
+    below 1e-4 for Stretch's lift and telescoping arm (they move the camera across its axis),
+    0.14-5.1 for every other shipped and zoo robot on a two-wheel platform (the reference
+    robot 0.24).
+
+    Args:
+        camera_jacobian: Camera twist in the camera frame, ``[v; omega]`` (6, n), at home.
+        velocity_limits: ``u_bar``. Shape (n,).
+        n_base: Number of base velocities (forward speed first).
+    """
+    arm = camera_jacobian[:, n_base:] * velocity_limits[n_base:]
+    _, singular, vt = np.linalg.svd(arm[3:5])
+    rank = int(np.sum(singular > 1e-9 * max(float(singular.max(initial=0.0)), 1.0)))
+    null = vt[rank:]
+    depth = float(np.linalg.norm(null @ arm[2]))
+    forward = abs(camera_jacobian[2, 0] * velocity_limits[0])
+    return depth / max(forward, 1e-9)
+
+
+def heading_factor(reach: float) -> float:
+    """The heading objective's share of ``k_psi``: 1 - reach / :data:`DEPTH_REACH_FULL`, at least 0.
+
+    1 for an arm that cannot move the camera along its axis (:func:`arm_depth_reach`), 0 for
+    one that can: its platform need not turn to where the camera looks.
+    """
+    return max(0.0, 1.0 - reach / DEPTH_REACH_FULL)
+
+
 @njit(cache=True, inline="always")
 def obstacle_force(distance: float, angle: float, k_u: float, k_w: float, d0: float) -> np.ndarray:
     r"""Fictitious force of eqs. (17)-(18) before the impedance, ``[F_u, F_w, F_y]``.

@@ -24,6 +24,8 @@ from pbvs_pin.control.secondary import (
     JointLimitAvoidance,
     ObstacleAvoidance,
     SecondaryObjective,
+    arm_depth_reach,
+    heading_factor,
 )
 from pbvs_pin.control.upright import delayed_margin
 from pbvs_pin.exceptions import ScenarioError
@@ -246,6 +248,10 @@ def secondary_objectives(
         lower, upper = model.arm_position_limits()
         objectives.append(JointLimitAvoidance(lower, upper))
     if spec.k_heading > 0.0 and model.n_base == 2:
-        d0 = spec.d0 if spec.obstacle_avoidance else 0.0
-        objectives.append(BaseHeading(spec.k_heading, d0))
+        jacobian = model.camera_jacobian(model.home())
+        reach = arm_depth_reach(jacobian, model.velocity_limits, model.n_base)
+        gain = spec.k_heading * heading_factor(reach)
+        if gain > 0.0:  # an arm that moves the camera along its axis: off, bit for bit
+            d0 = spec.d0 if spec.obstacle_avoidance else 0.0
+            objectives.append(BaseHeading(gain, d0))
     return objectives

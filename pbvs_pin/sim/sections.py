@@ -473,8 +473,9 @@ class SecondarySection(Section):
     impedance_mass: float = key(0.5, "Inertia m of the impedance Z [s].", sign=POSITIVE)
     impedance_damping: float = key(1.0, "Damping b of the impedance Z [1].", sign=POSITIVE)
     k_lambda: float = key(1.0, "k_Lambda of eq. (19) [1/s].", sign=POSITIVE)
-    k_heading: float = key(0.0, "k_psi [1/s]: turn a two-wheel platform to where the camera looks, "
-        "in the null space (pbvs_pin.control.secondary.heading_term); 0: off.", sign=NON_NEGATIVE)
+    k_heading: float = key(1.0, "k_psi [1/s]: turn a two-wheel platform to where the camera looks "
+        "(secondary.heading_term), times heading_factor: 0 for an arm that moves the camera "
+        "along its axis (most); 0: off.", sign=NON_NEGATIVE)
 
 
 @dataclass(frozen=True)
