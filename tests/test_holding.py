@@ -49,13 +49,17 @@ LIFT_ARM = """<?xml version="1.0"?>
 """
 
 
-def _robot(tmp_path, effort: float) -> MobileManipulator:
-    path = tmp_path / "lift_arm.urdf"
-    path.write_text(LIFT_ARM.replace("EFFORT", str(effort)))
-    robot = MobileManipulator.assemble(
+def _mounted(path: Path, text: str) -> MobileManipulator:
+    """The arm URDF ``text``, written to ``path``, on the reference platform's top plate."""
+    path.write_text(text)
+    return MobileManipulator.assemble(
         base="pioneer3at", arm=str(path), mount=(0.0, 0.0, 0.27, 0.0, 0.0, 0.0),
         camera_link="tool_link",
     )  # fmt: skip
+
+
+def _robot(tmp_path, effort: float) -> MobileManipulator:
+    robot = _mounted(tmp_path / "lift_arm.urdf", LIFT_ARM.replace("EFFORT", str(effort)))
     robot.home_arm = np.array([0.2, 0.0])
     return robot
 
@@ -104,12 +108,7 @@ def test_holding_rows_are_the_share_of_the_limit_left_after_gravity(tmp_path, th
 
     theta is the rotation about y, which lowers the boom's tip below the joint for theta > 0.
     """
-    path = tmp_path / "pitch_arm.urdf"
-    path.write_text(PITCH_ARM)
-    robot = MobileManipulator.assemble(
-        base="pioneer3at", arm=str(path), mount=(0.0, 0.0, 0.27, 0.0, 0.0, 0.0),
-        camera_link="tool_link",
-    )  # fmt: skip
+    robot = _mounted(tmp_path / "pitch_arm.urdf", PITCH_ARM)
     q = robot.with_arm_positions(robot.neutral(), [theta])
     rows, slope = holding_rows(robot, q, margin=0.2)
     moment = PITCH_MASS * GRAVITY * PITCH_LENGTH
