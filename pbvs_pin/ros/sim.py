@@ -35,6 +35,7 @@ from std_msgs.msg import Float64MultiArray
 from pbvs_pin import frames
 from pbvs_pin.ros import messages
 from pbvs_pin.ros.tf import TF_TYPE, tf_message
+from pbvs_pin.sim.obstacles import clearance, footprint_points
 from pbvs_pin.sim.scenario import Scenario
 from pbvs_pin.sim.sensing import Sensing, planar_pose
 from pbvs_pin.sim.setup import build
@@ -114,7 +115,8 @@ class SimRobot(Node):
         self.fresh_commands = 0
         self.bag = None
         self.in_flight: deque[tuple[float, Image]] = deque()  # (delivery time, image)
-        self.rows: dict[str, list] = {"t": [], "error": [], "v_ref": []}
+        self.footprint = footprint_points(scenario.platform.length, scenario.platform.width)
+        self.rows: dict[str, list] = {"t": [], "error": [], "v_ref": [], "clearance": [], "arm": []}
 
     def record(self, path: str) -> None:
         """Write every message sent and received (and the node's diagnostics) into a bag.
@@ -230,6 +232,12 @@ class SimRobot(Node):
         points, _ = self.robot.camera.project_world(pose, setup.target.centres(self.t))
         return points.reshape(-1)[setup.features.rows] - setup.xi_d
 
+    def clearance(self) -> float | None:
+        """The platform's true clearance to the scenario's obstacles [m]; None without any."""
+        pose = planar_pose(self.robot, self.setup.plant.q)
+        distance = clearance(self.setup.obstacles, self.footprint, *pose)
+        return round(distance, 5) if np.isfinite(distance) else None
+
     def wait_for_controller(self, timeout: float) -> bool:
         """Wait for a controller node, up to ``timeout`` [s] of wall-clock time.
 
@@ -268,6 +276,9 @@ class SimRobot(Node):
                     self.rows["t"].append(round(self.t, 6))
                     self.rows["error"].append(self.true_error().round(4).tolist())
                     self.rows["v_ref"].append(v_ref.round(6).tolist())
+                    self.rows["clearance"].append(self.clearance())
+                    arm = self.model.arm_positions(self.setup.plant.q)
+                    self.rows["arm"].append(arm.round(6).tolist())
                 for _ in range(self.substeps):
                     self.setup.plant.step(v_ref)
         finally:
@@ -278,9 +289,15 @@ class SimRobot(Node):
         return self.summary(wallclock.perf_counter() - started)
 
     def summary(self, wall: float) -> dict:
-        """What the run did: the true feature error at :data:`SUMMARY_RATE`, and counts."""
+        """What the run did, at :data:`SUMMARY_RATE`, and counts.
+
+        The true feature error [px], the commands, the platform's clearance [m] (None without
+        obstacles) and the arm's positions, with the posture target ``theta_d`` of eq. (19).
+        """
         return {
             "scenario": self.scenario.name,
+            "posture_target": np.asarray(self.setup.posture_target).round(6).tolist(),
+            "arm_continuous": [bool(c) for c in self.model.arm_continuous],
             "simulated_s": round(self.t + self.period, 6),
             "wall_s": round(wall, 3),
             "commands_received": self.commands_received,
