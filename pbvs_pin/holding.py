@@ -35,26 +35,25 @@ def overloaded_joints(robot: MobileManipulator, q: np.ndarray) -> list[tuple[str
         Per such joint: its name, the load ``|g_i(q)|`` [N m or N] and the limit [N m or N].
     """
     model = robot.model
-    gravity = pin.computeGeneralizedGravity(model, model.createData(), q)
-    found = []
-    for name in robot.arm_joint_names:
-        index = model.joints[model.getJointId(name)].idx_v
-        limit = float(model.effortLimit[index])
-        load = abs(float(gravity[index]))
-        if np.isfinite(limit) and 0.0 < limit < load:
-            found.append((name, load, limit))
-    return found
+    names, index, limit = _limited(robot)
+    load = np.abs(pin.computeGeneralizedGravity(model, model.createData(), q)[index])
+    return [
+        (name, float(carried), float(most))
+        for name, carried, most in zip(names, load, limit, strict=True)
+        if most < carried
+    ]
 
 
-def _limited(robot: MobileManipulator) -> tuple[np.ndarray, np.ndarray]:
-    """Velocity indices of the arm joints with an effort limit, shape (k,), and the limits."""
+def _limited(robot: MobileManipulator) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """The arm joints with an effort limit: names, velocity indices (k,) and limits (k,)."""
     model = robot.model
     index = np.array(
         [model.joints[model.getJointId(name)].idx_v for name in robot.arm_joint_names], dtype=int
     )
     limit = np.asarray(model.effortLimit, dtype=float)[index]
     given = np.isfinite(limit) & (limit > 0.0)  # effort <= 0 in a URDF: not given
-    return index[given], limit[given]
+    names = [name for name, kept in zip(robot.arm_joint_names, given, strict=True) if kept]
+    return names, index[given], limit[given]
 
 
 def holding_rows(
@@ -77,7 +76,7 @@ def holding_rows(
         (k, n_arm); k = 0 for a robot without effort limits.
     """
     model = robot.model
-    index, limit = _limited(robot)
+    _, index, limit = _limited(robot)
     data = model.createData()
     gravity = pin.computeGeneralizedGravity(model, data, q)[index]
     slope = pin.computeGeneralizedGravityDerivatives(model, data, q)[index]

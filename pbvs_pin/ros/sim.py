@@ -232,7 +232,7 @@ class SimRobot(Node):
         points, _ = self.robot.camera.project_world(pose, setup.target.centres(self.t))
         return points.reshape(-1)[setup.features.rows] - setup.xi_d
 
-    def clearance(self) -> float | None:
+    def true_clearance(self) -> float | None:
         """The platform's true clearance to the scenario's obstacles [m]; None without any."""
         pose = planar_pose(self.robot, self.setup.plant.q)
         distance = clearance(self.setup.obstacles, self.footprint, *pose)
@@ -276,7 +276,7 @@ class SimRobot(Node):
                     self.rows["t"].append(round(self.t, 6))
                     self.rows["error"].append(self.true_error().round(4).tolist())
                     self.rows["v_ref"].append(v_ref.round(6).tolist())
-                    self.rows["clearance"].append(self.clearance())
+                    self.rows["clearance"].append(self.true_clearance())
                     arm = self.model.arm_positions(self.setup.plant.q)
                     self.rows["arm"].append(arm.round(6).tolist())
                 for _ in range(self.substeps):
