@@ -7,9 +7,9 @@ apart it cannot: Vega-1's largest direction made the loop-gain net cut every gai
 (Experiment 4 ended 3.92 px off), and Stretch's depth direction, 600 times slower than its
 telescoping arm, left the depth error to a time constant of minutes. ``balanced`` sets the
 feedback per direction from the robot's model and the camera period (an extension, not the
-default: with it Vega-1 holds Experiment 4 at 0.05 px, but Stretch RE1 and Stretch 3 fail
-Experiment 4 at 27.1 and 22.7 px, which the paper's law holds; the zoo with it is on the docs'
-*Feedback per direction* page):
+default: with it Vega-1 holds Experiment 4 at 0.05 px, but on the MuJoCo plant it does not
+hold the reference robot, whose skid-steer platform turns slower there than the model says;
+the zoo with it is on the docs' *Feedback per direction* page):
 
 .. math:: u_{fb} = -g\, M J^T (J M J^T + \mu^2 I)^{-1} K_c \tilde\xi,\qquad
           M = \mathrm{diag}(h_j \bar u_j^2),\qquad g = \frac{\rho}{T k_{max}}
