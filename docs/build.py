@@ -29,10 +29,10 @@ from pathlib import Path
 from typing import Any
 
 import pbvs_pin
-from pbvs_pin.sim.keys import Sign, keys_of
 from pbvs_pin.sim.scenario import OBSTACLE_KINDS, Scenario
 from pbvs_pin.sim.sections import SECTIONS
 from pbvs_pin.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS, SWEEP_TABLE_DOCS
+from pbvs_pin.toml_keys import Sign, keys_of
 
 DOCS = Path(__file__).resolve().parent
 NOT_PAGES = ("_build", "build.py", "gallery.py", "__pycache__")

@@ -152,7 +152,7 @@ def _write_output(
 
         plot_run(log, out, footprint=(scenario.platform.length, scenario.platform.width))
     elif what == "replay" and html is not None:
-        from pbvs_pin.viz.replay import write_run_replay
+        from pbvs_pin.viz.html_replay import write_run_replay
 
         write_run_replay(log, html, eye_view=eye is not None)
     elif what == "eye view" and eye is not None:

@@ -1,6 +1,6 @@
 """The robustness map: each camera fault raised alone until the loop breaks.
 
-The map is read from the shipped spec ``pbvs_pin/sweeps/robustness.toml``: a base scenario, the
+The map is read from the shipped spec ``pbvs_pin/sweep/specs/robustness.toml``: a base scenario, the
 compensation (``[map.compensation]``: prediction along eq. (3), a hold through lost frames,
 feature smoothing), the values without it (``[map.without]``: the paper's estimator) and one
 ``[[fault]]`` block per fault with its field and sizes. Each size is run twice, without and with
@@ -42,7 +42,7 @@ def map_path(name_or_path: str | Path) -> Path | None:
 
 
 def load_map(path: Path | None = None) -> dict[str, Any]:
-    """The robustness spec (default: the shipped ``sweeps/robustness.toml``) as a dict."""
+    """The robustness spec (default: the shipped ``sweep/specs/robustness.toml``) as a dict."""
     with open(path or sweep_dir() / "robustness.toml", "rb") as file:
         return tomllib.load(file)
 
@@ -209,8 +209,8 @@ def map_section(rows: list[dict[str, Any]], figure: str = "robustness.png") -> s
         "",
         "## Robustness map: each camera fault alone, Experiment 1",
         "",
-        "Each fault raised alone (sizes in `pbvs_pin/sweeps/robustness.toml`), without and with "
-        "the estimator's fault handling (prediction along eq. (3), 1.5 s hold, smoothing 0.2, "
+        "Each fault raised alone (sizes in `pbvs_pin/sweep/specs/robustness.toml`), without and "
+        "with the estimator's fault handling (prediction along eq. (3), 1.5 s hold, smoothing 0.2, "
         "noise-adaptive velocity filter; "
         "not the dynamic compensation of eq. (20)). Broken: max "
         "|error| over the last 5 s above 10 px, or the target lost then.",

@@ -25,6 +25,7 @@ from pbvs_pin import (
     TwoSphereFeatures,
     rigid_body_terms,
 )
+from pbvs_pin.detection import register_detector
 from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.exceptions import WrongType
 from pbvs_pin.home import assess_home, compute_home
@@ -33,7 +34,6 @@ from pbvs_pin.manipulability import (
     max_manipulability_posture,
     whole_body_manipulability,
 )
-from pbvs_pin.sim.detection import register_detector
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.targets import Still, TwoSphereTarget
 from pbvs_pin.validation import as_se3

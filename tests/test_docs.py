@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from pbvs_pin.sim.keys import keys_of
 from pbvs_pin.sim.scenario import OBSTACLE_KINDS, Scenario
 from pbvs_pin.sim.sections import SECTIONS
 from pbvs_pin.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS
+from pbvs_pin.toml_keys import keys_of
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
@@ -92,7 +92,7 @@ def test_the_api_reference_puts_the_public_names_first_and_internals_apart(site)
             target = f"{obj.__module__}.{obj.__qualname__}"
             assert f'id="{target}"' in api, target
             assert f'id="{target}"' not in internals, target  # documented once, publicly
-    assert 'id="pbvs_pin.sim.keys.keys_of"' in internals
+    assert 'id="pbvs_pin.toml_keys.keys_of"' in internals
 
 
 def test_the_index_leads_to_every_section():

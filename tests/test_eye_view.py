@@ -71,7 +71,7 @@ def test_replay_shows_the_eye_view_at_the_animation_time(run, tmp_path):
     """The image of the key at the animation's time, clear of the time and error readout."""
     from browser import Page, chromium
 
-    from pbvs_pin.viz.replay import write_run_replay
+    from pbvs_pin.viz.html_replay import write_run_replay
 
     log, _ = run
     html = write_run_replay(log, tmp_path / "replay.html", rate=10.0, eye_view=True)

@@ -17,10 +17,10 @@ import json
 import numpy as np
 import pytest
 
-from pbvs_pin.sim.detection import ColourDetector, register_detector
-from pbvs_pin.sim.keys import keys_of
+from pbvs_pin.detection import ColourDetector, register_detector
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import Scenario, load_scenario
+from pbvs_pin.toml_keys import keys_of
 
 BASE = {"duration": 2.0}
 OBSTACLE = {"secondary.obstacle_avoidance": True, "secondary.d0": 3.0}

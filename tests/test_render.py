@@ -14,6 +14,7 @@ from conftest import REPO_ROOT
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import load_robot
 from pbvs_pin.claims import claim_met
+from pbvs_pin.detection import ColourDetector
 from pbvs_pin.exceptions import PbvsWarning, ScenarioError
 from pbvs_pin.report import (
     RENDERED_BEGIN,
@@ -22,7 +23,6 @@ from pbvs_pin.report import (
     readme_block,
     rendered_results,
 )
-from pbvs_pin.sim.detection import ColourDetector
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import detection_summary, summarize
 from pbvs_pin.sim.obstacles import BoxObstacle

@@ -11,7 +11,7 @@ from pbvs_pin.controller import Controller
 from pbvs_pin.exceptions import LogError
 from pbvs_pin.ros import messages
 from pbvs_pin.ros.bag import BagRecorder
-from pbvs_pin.ros.replay import replay_bag
+from pbvs_pin.ros.bag_replay import replay_bag
 from pbvs_pin.sim.scenario import load_scenario
 
 pytestmark = pytest.mark.ros

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from pbvs_pin.cli import main
+from pbvs_pin.control.tables import CameraSection, ControllerSection
 from pbvs_pin.exceptions import GainError, ScenarioError
-from pbvs_pin.sim.keys import keys_of
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle
 from pbvs_pin.sim.scenario import (
@@ -25,8 +25,9 @@ from pbvs_pin.sim.scenario import (
     scenario_dir,
     shipped_scenarios,
 )
-from pbvs_pin.sim.sections import SECTIONS, CameraSection, ControllerSection
+from pbvs_pin.sim.sections import SECTIONS
 from pbvs_pin.sim.setup import build
+from pbvs_pin.toml_keys import keys_of
 
 EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
 

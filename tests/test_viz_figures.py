@@ -8,7 +8,7 @@ import pytest
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.viz.figures import plot_run
-from pbvs_pin.viz.replay import log_robot
+from pbvs_pin.viz.html_replay import log_robot
 from pbvs_pin.viz.stroboscope import instants, plot_stroboscope
 
 

@@ -16,9 +16,9 @@ from conftest import project_world
 
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.viz.html_replay import log_robot, write_run_replay
 from pbvs_pin.viz.primitives import MESHCAT_TO_THREEJS
 from pbvs_pin.viz.recorder import offline_visualizer
-from pbvs_pin.viz.replay import log_robot, write_run_replay
 from pbvs_pin.viz.run_scene import IMAGE_PLANE_DEPTH, RunFacts, RunScene
 from pbvs_pin.viz.server import open_visualizer
 

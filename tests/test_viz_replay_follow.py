@@ -8,7 +8,7 @@ from browser import Page, chromium
 
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
-from pbvs_pin.viz.replay import follow_point, write_run_replay
+from pbvs_pin.viz.html_replay import follow_point, write_run_replay
 
 pytestmark = pytest.mark.filterwarnings(
     "ignore:zmq.eventloop.ioloop is deprecated:DeprecationWarning"

@@ -20,7 +20,7 @@ from conftest import project_world
 
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
-from pbvs_pin.viz.replay import log_robot, write_run_replay
+from pbvs_pin.viz.html_replay import log_robot, write_run_replay
 
 pytestmark = pytest.mark.filterwarnings(
     "ignore:zmq.eventloop.ioloop is deprecated:DeprecationWarning"

@@ -1,6 +1,6 @@
 """All the analysis figures of one run's log, as a JSON-serialisable dict.
 
-Composes :mod:`~pbvs_pin.analysis.robustness` (eqs. (31)-(42)) and
+Composes :mod:`~pbvs_pin.analysis.motion_bounds` (eqs. (31)-(42)) and
 :mod:`~pbvs_pin.analysis.passivity` (eqs. (9), (13)/(14)); notation in :mod:`pbvs_pin.analysis`.
 """
 
@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from pbvs_pin.analysis.motion_bounds import bounds_after_t1, choose_t1
 from pbvs_pin.analysis.passivity import SIGNAL_SETS, passivity_of_log
-from pbvs_pin.analysis.robustness import bounds_after_t1, choose_t1
 from pbvs_pin.analysis.signals import finite_max, gain_times_error
 from pbvs_pin.exceptions import GainError, LogError, NonFiniteValue, PbvsError, WrongType
 from pbvs_pin.sim.log import RunLog
@@ -72,7 +72,7 @@ def analyze_log(
         log: A run's log.
         epsilon: ``eps`` of eq. (31), ``0 < eps < 1``.
         t1: Start [s] of the ultimate-bound phase; None for the default rule
-            (:mod:`pbvs_pin.analysis.robustness`).
+            (:mod:`pbvs_pin.analysis.motion_bounds`).
         source: Name of the log, for error messages and the report.
 
     Returns:

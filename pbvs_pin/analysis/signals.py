@@ -1,7 +1,7 @@
 r"""Sampled-signal helpers of the analysis: ``K_c(e) e`` of eq. (8), integrals, running maxima.
 
-Shared by :mod:`~pbvs_pin.analysis.robustness`, :mod:`~pbvs_pin.analysis.passivity` and
-:mod:`~pbvs_pin.analysis.plots`. Samples logged as NaN (no measurement) are skipped or given
+Shared by :mod:`~pbvs_pin.analysis.motion_bounds`, :mod:`~pbvs_pin.analysis.passivity` and
+:mod:`~pbvs_pin.analysis.bound_plots`. Samples logged as NaN (no measurement) are skipped or given
 an explicit value, as each function says.
 """
 

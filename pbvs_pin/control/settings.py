@@ -10,7 +10,7 @@ compensator) and name the field at fault when a value does not fit.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
@@ -27,12 +27,7 @@ from pbvs_pin.control.secondary import (
     arm_depth_reach,
     heading_factor,
 )
-from pbvs_pin.control.upright import delayed_margin
-from pbvs_pin.exceptions import ScenarioError
-from pbvs_pin.manipulability import max_manipulability_posture
-from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.servo import ServoModel
-from pbvs_pin.sim.sections import (
+from pbvs_pin.control.tables import (
     CameraSection,
     CompensationSection,
     ControllerSection,
@@ -40,13 +35,31 @@ from pbvs_pin.sim.sections import (
     SecondarySection,
     TargetSection,
 )
+from pbvs_pin.control.upright import delayed_margin
+from pbvs_pin.exceptions import ScenarioError
+from pbvs_pin.manipulability import max_manipulability_posture
+from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.servo import ServoModel
 from pbvs_pin.validation import as_number, as_numbers, positive_number
-
-if TYPE_CHECKING:
-    from pbvs_pin.sim.scenario import Scenario
 
 HISTORY_SECONDS = 2.0
 """Default span of the encoder history [s]: the oldest frame the controller can place."""
+
+
+class ScenarioTables(Protocol):
+    """What :meth:`ControllerSettings.from_scenario` reads of a scenario.
+
+    The controller's tables (:mod:`pbvs_pin.control.tables`) and the file they came from; a
+    :class:`pbvs_pin.sim.scenario.Scenario` is one.
+    """
+
+    camera: CameraSection
+    target: TargetSection
+    estimator: EstimatorSection
+    controller: ControllerSection
+    compensation: CompensationSection
+    secondary: SecondarySection
+    source: str
 
 
 @dataclass(frozen=True)
@@ -94,7 +107,7 @@ class ControllerSettings:
             object.__setattr__(self, "servo_time_constants", tuple(lags.tolist()))
 
     @classmethod
-    def from_scenario(cls, scenario: Scenario) -> ControllerSettings:
+    def from_scenario(cls, scenario: ScenarioTables) -> ControllerSettings:
         """The controller's part of a scenario.
 
         The encoder history spans at least twice the oldest age a frame of the scenario's

@@ -22,8 +22,8 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Bool, Float64MultiArray
 
 from pbvs_pin import frames
+from pbvs_pin.detection import SPHERE_HUES, sphere_rgba
 from pbvs_pin.ros import messages
-from pbvs_pin.sim.detection import SPHERE_HUES, sphere_rgba
 from pbvs_pin.sim.scenario import Scenario
 
 RATE = 0.1

@@ -15,7 +15,7 @@ at once and refuse what a user could not have meant, before any robot is built:
   synchronised with the controller), so the camera rate need not divide the control rate.
 - **Time**: the run lasts at least :data:`MIN_LOG_SAMPLES` log periods; the latency is
   shorter than the run and a second frame is delivered before the run ends (the latency
-  defaults to one frame period: :attr:`~pbvs_pin.sim.sections.CameraSection.delivery_latency`).
+  defaults to one frame period: :attr:`~pbvs_pin.control.tables.CameraSection.delivery_latency`).
 - **Obstacles**: none overlaps the platform's footprint (``[platform]``) at the start, where
   the base stands at the origin with heading 0.
 
@@ -30,16 +30,10 @@ from typing import Protocol
 
 import numpy as np
 
+from pbvs_pin.control.tables import CameraSection, ControllerSection, TargetSection
 from pbvs_pin.exceptions import GainError, PbvsWarning
 from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle, footprint_points
-from pbvs_pin.sim.sections import (
-    CameraSection,
-    ControllerSection,
-    LaserSection,
-    PlatformSection,
-    SimulationSection,
-    TargetSection,
-)
+from pbvs_pin.sim.sections import LaserSection, PlatformSection, SimulationSection
 
 
 class ScenarioView(Protocol):
@@ -57,6 +51,7 @@ class ScenarioView(Protocol):
     platform: PlatformSection
     simulation: SimulationSection
     obstacles: tuple[CircleObstacle | BoxObstacle, ...]
+
 
 RATE_TOLERANCE = 1e-6
 """Relative distance to a whole number of steps below which a period counts as a multiple."""

@@ -34,7 +34,7 @@ from pbvs_pin.sim.vision import Frame
 from pbvs_pin.validation import as_instance
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from pbvs_pin.sim.detection import CameraImage
+    from pbvs_pin.detection import CameraImage
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@
 :class:`SceneRenderer` builds a MuJoCo model of the *scene* (not of the physics) from the
 robot's assembled URDF (:attr:`pbvs_pin.robot.MobileManipulator.urdf_xml`, through MuJoCo's
 URDF importer with its visual geometry kept, colours from the URDF's materials), adds the two
-target spheres (mocap bodies, colours of :data:`pbvs_pin.sim.detection.SPHERE_HUES`), the
+target spheres (mocap bodies, colours of :data:`pbvs_pin.detection.SPHERE_HUES`), the
 obstacles (vertical prisms of their height), a checkered floor, an overhead light and the
 camera's headlight. :meth:`SceneRenderer.render` places the robot at a configuration of the
 controller's model (planar pose and arm joints, as :class:`pbvs_pin.mujoco_plant.MujocoPlant`
@@ -39,9 +39,9 @@ from lxml import etree
 
 from pbvs_pin import frames
 from pbvs_pin.camera import CameraIntrinsics
+from pbvs_pin.detection import SPHERE_HUES, sphere_rgba
 from pbvs_pin.exceptions import PbvsWarning, RenderingUnavailable, UrdfError
 from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.sim.detection import SPHERE_HUES, sphere_rgba
 from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle, Obstacle
 
 OPTICAL_TO_MUJOCO = np.diag([1.0, -1.0, -1.0])

@@ -20,29 +20,31 @@ from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
-from pbvs_pin.exceptions import GainError, ScenarioError
-from pbvs_pin.shipped import scenario_dir as scenario_dir  # where it was, for its users
-from pbvs_pin.shipped import scenario_file, shipped_scenarios
-from pbvs_pin.sim.consistency import check_consistency
-from pbvs_pin.sim.keys import Section, Sign, is_number, key, keys_of
-from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle
-from pbvs_pin.sim.sections import (
-    SECTIONS,
+from pbvs_pin.control.tables import (
     CameraSection,
     CompensationSection,
     ControllerSection,
     EstimatorSection,
+    SecondarySection,
+    TargetSection,
+)
+from pbvs_pin.exceptions import GainError, ScenarioError
+from pbvs_pin.shipped import scenario_dir as scenario_dir  # where it was, for its users
+from pbvs_pin.shipped import scenario_file, shipped_scenarios
+from pbvs_pin.sim.consistency import check_consistency
+from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle
+from pbvs_pin.sim.sections import (
+    SECTIONS,
     LaserSection,
     ModelErrorSection,
     MotionSection,
     PlantSection,
     PlatformSection,
     RobotSection,
-    SecondarySection,
     SensingSection,
     SimulationSection,
-    TargetSection,
 )
+from pbvs_pin.toml_keys import Section, Sign, is_number, key, keys_of
 from pbvs_pin.validation import read_toml
 
 OBSTACLE_KINDS: dict[str, type[CircleObstacle | BoxObstacle]] = {

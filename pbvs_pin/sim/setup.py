@@ -241,7 +241,7 @@ def _rendered_camera(
     target: TwoSphereTarget,
 ) -> RenderedCamera:
     """The rendered camera of ``camera.model = "rendered"``, reading the true plant."""
-    from pbvs_pin.sim.detection import detector_from  # OpenCV and MuJoCo only when rendering
+    from pbvs_pin.detection import detector_from  # OpenCV and MuJoCo only when rendering
     from pbvs_pin.sim.render import SceneRenderer, warn_self_view
     from pbvs_pin.sim.rendered_camera import RENDER_STREAM, ImageEffects, RenderedCamera
 

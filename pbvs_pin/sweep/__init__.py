@@ -7,7 +7,7 @@ One module per step of a sweep, imported in this order (each only from the ones 
 - :mod:`~pbvs_pin.sweep.runner`: one run (watchdog, divergence) and its table row.
 - :mod:`~pbvs_pin.sweep.table`: ``results.csv``, ``timings.csv``, folder lock, resume.
 - :mod:`~pbvs_pin.sweep.executors`: local process pool or Dask cluster, crash retries.
-- :mod:`~pbvs_pin.sweep.plots`: the two summary plots.
+- :mod:`~pbvs_pin.sweep.summary_plots`: the two summary plots.
 - :mod:`~pbvs_pin.sweep.driver`: :func:`run_sweep`, which ties them together.
 """
 

@@ -17,8 +17,8 @@ from pbvs_pin.sweep.executors import (
     process_pool,
     worker_environment,
 )
-from pbvs_pin.sweep.plots import plot_sweep
 from pbvs_pin.sweep.spec import load_sweep
+from pbvs_pin.sweep.summary_plots import plot_sweep
 from pbvs_pin.sweep.table import (
     TABLE,
     TIMINGS,

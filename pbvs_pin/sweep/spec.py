@@ -90,7 +90,7 @@ SWEEP_TABLE_DOCS: dict[str, str] = {
 
 def sweep_dir() -> Path:
     """Folder of the shipped sweep specs."""
-    return Path(__file__).resolve().parents[1] / "sweeps"
+    return Path(__file__).resolve().parent / "specs"
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ Modules
 * :mod:`~pbvs_pin.viz.robot_scene`: a robot's visual geometries posed from Pinocchio.
 * :mod:`~pbvs_pin.viz.animation`: pose tracks -> animation -> standalone HTML replay.
 * :mod:`~pbvs_pin.viz.run_scene`: the scene of a closed-loop run.
-* :mod:`~pbvs_pin.viz.live`, :mod:`~pbvs_pin.viz.replay`, :mod:`~pbvs_pin.viz.figures`:
+* :mod:`~pbvs_pin.viz.live`, :mod:`~pbvs_pin.viz.html_replay`, :mod:`~pbvs_pin.viz.figures`:
   a run shown live, written as a replay, plotted.
 
 Everything works on plain Pinocchio objects (``pin.Model``,
@@ -59,7 +59,7 @@ A file needs no server: :func:`offline_visualizer` records the scene in this
 process and its ``static_html()`` is the page a server would return.  A
 closed-loop run is drawn by :class:`RunScene` (robot, target, obstacles,
 camera frustum, image plane, trails), shared by the live view
-(:mod:`pbvs_pin.viz.live`) and the replay (:mod:`pbvs_pin.viz.replay`).
+(:mod:`pbvs_pin.viz.live`) and the replay (:mod:`pbvs_pin.viz.html_replay`).
 Starting a server that cannot start raises
 :class:`~pbvs_pin.exceptions.ViewerUnavailable`.
 """

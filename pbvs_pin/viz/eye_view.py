@@ -19,8 +19,8 @@ import cv2
 import numpy as np
 
 from pbvs_pin.camera import CameraIntrinsics
+from pbvs_pin.detection import ColourDetector, Detector
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.sim.detection import ColourDetector, Detector
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.scenario import OBSTACLE_KINDS
 from pbvs_pin.sim.targets import centres_from

@@ -2,7 +2,7 @@
 
 Both draw with the scene modules of :mod:`pbvs_pin.viz`; a run is drawn by the same
 :class:`~pbvs_pin.viz.run_scene.RunScene` as the standalone replay of
-:mod:`pbvs_pin.viz.replay`.
+:mod:`pbvs_pin.viz.html_replay`.
 
 A live view must never cost the run its results, and little of its time. :meth:`LiveView.show`
 is called at the log rate; it records trail points and sends the scene at most

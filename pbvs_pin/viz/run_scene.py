@@ -3,7 +3,7 @@
 A run is drawn as the robot (:class:`~pbvs_pin.viz.robot_scene.RobotScene`), the two target
 spheres, the obstacles, the camera (frustum, triad, image plane with desired and current
 points) and the platform and target trails.  The live view (:mod:`pbvs_pin.viz.live`) sends
-its poses to a server; the replay (:mod:`pbvs_pin.viz.replay`) keys them into an animation.
+its poses to a server; the replay (:mod:`pbvs_pin.viz.html_replay`) keys them into an animation.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 :func:`analyze_run` loads a run's ``log.npz``, computes :func:`~pbvs_pin.analysis.analyze_log`
 and writes the report; :func:`report_markdown` sets both sides of every inequality ((9),
 (13)/(14), (31), (38), (39), (42)) in a markdown table; the plots come from
-:mod:`~pbvs_pin.analysis.plots`.
+:mod:`~pbvs_pin.analysis.bound_plots`.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from pbvs_pin.analysis.analyze import analyze_log
-from pbvs_pin.analysis.plots import plot_analysis
+from pbvs_pin.analysis.bound_plots import plot_analysis
 from pbvs_pin.exceptions import LogError, OutputError, PbvsError
 from pbvs_pin.sim.log import CHANNELS, RunLog, write_json_atomically, write_text_atomically
 from pbvs_pin.validation import as_path
