@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pbvs_pin.sweep import read_table, run_sweep
+from pbvs_pin.study.sweep import read_table, run_sweep
 
 
 def write_spec(folder: Path, runs: int, duration: float) -> Path:

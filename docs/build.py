@@ -11,7 +11,7 @@ a temporary source folder beside four generated ones:
 - ``scenario_keys.rst``: every scenario key, generated from the typed sections of
   :mod:`pbvs_pin.sim.sections` (:func:`~pbvs_pin.sim.sections.keys_of`) and the obstacle
   classes;
-- ``sweep_keys.rst``: every key of a sweep spec, from :mod:`pbvs_pin.sweep.spec`.
+- ``sweep_keys.rst``: every key of a sweep spec, from :mod:`pbvs_pin.study.sweep.spec`.
 
 Nothing is fetched: the build works offline.
 """
@@ -31,7 +31,7 @@ from typing import Any
 import pbvs_pin
 from pbvs_pin.sim.scenario import OBSTACLE_KINDS, Scenario
 from pbvs_pin.sim.sections import SECTIONS
-from pbvs_pin.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS, SWEEP_TABLE_DOCS
+from pbvs_pin.study.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS, SWEEP_TABLE_DOCS
 from pbvs_pin.toml_keys import Sign, keys_of
 
 DOCS = Path(__file__).resolve().parent
@@ -192,7 +192,7 @@ def sweep_page() -> str:
     text = heading("Sweep keys", "=")
     text += (
         "Every key of a sweep spec (``pbvs-pin sweep SPEC``), generated from "
-        ":mod:`pbvs_pin.sweep.spec`. Field names are dotted scenario keys "
+        ":mod:`pbvs_pin.study.sweep.spec`. Field names are dotted scenario keys "
         "(:doc:`scenario_keys`), checked when the spec is read.\n\n"
     )
     rows = [

@@ -5,7 +5,7 @@
 Copies the figures :data:`FIGURES` names from ``RESULTS`` into ``docs/_static/gallery/``, takes
 a screenshot of Experiment 2's replay in headless Chromium (``/usr/bin/chromium``, driven by
 Playwright; override with ``PBVS_CHROMIUM``), and rewrites the generated tables of
-``docs/gallery.md`` and of the README from the run summaries (:mod:`pbvs_pin.report`).
+``docs/gallery.md`` and of the README from the run summaries (:mod:`pbvs_pin.study.report`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from pbvs_pin.report import update_readme
+from pbvs_pin.study.report import update_readme
 
 DOCS = Path(__file__).resolve().parent
 GALLERY = DOCS / "_static" / "gallery"

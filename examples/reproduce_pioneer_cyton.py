@@ -17,8 +17,8 @@ import webbrowser
 from pathlib import Path
 
 import pbvs_pin
-from pbvs_pin.claims import verdict_text
-from pbvs_pin.experiments import run_scenario
+from pbvs_pin.study.claims import verdict_text
+from pbvs_pin.study.experiments import run_scenario
 
 SHORT_RUN = 3.0  # simulated time of a --no-viz run [s]
 

@@ -40,12 +40,12 @@ from pbvs_pin.interrupts import (
     stage,
 )
 from pbvs_pin.outputs import Output, check_outputs, output_option, replace_run_folder
-from pbvs_pin.report import ENGINE_ROBOTS
 from pbvs_pin.ros.commands import add_arguments as ros_arguments
 from pbvs_pin.shipped import scenario_file
+from pbvs_pin.study.report import ENGINE_ROBOTS
+from pbvs_pin.study.zoo import add_arguments as zoo_arguments
+from pbvs_pin.study.zoo import command as zoo_command
 from pbvs_pin.validation import positive_number
-from pbvs_pin.zoo import add_arguments as zoo_arguments
-from pbvs_pin.zoo import command as zoo_command
 
 if TYPE_CHECKING:
     from pbvs_pin.robot import MobileManipulator
@@ -68,7 +68,7 @@ def load_robot_argument(argument: str) -> MobileManipulator:
 
     if Path(argument).suffix.lower() != ".toml":
         return build_robot(argument)
-    from pbvs_pin.experiments import robot_file
+    from pbvs_pin.study.experiments import robot_file
 
     scenario = robot_file(argument)
     return scenario.robot.build(scenario.camera.intrinsics())
@@ -123,7 +123,7 @@ def _list(args: argparse.Namespace) -> None:
         return
     from pbvs_pin.catalogue import example_robot_data_arms
     from pbvs_pin.shipped import shipped_scenarios
-    from pbvs_pin.sweep.spec import sweep_dir
+    from pbvs_pin.study.sweep.spec import sweep_dir
 
     sections = (
         ("shipped robots (pbvs-pin info NAME; [robot] name = NAME)", ROBOT_NAMES),
@@ -151,7 +151,7 @@ def _run_scenario(args: argparse.Namespace) -> Scenario:
 
     scenario = load_scenario(args.scenario)
     if args.robot is not None:
-        from pbvs_pin.experiments import with_robot
+        from pbvs_pin.study.experiments import with_robot
 
         scenario = with_robot(scenario, args.robot)
     changes = dict(_setting(text) for text in args.set)
@@ -188,7 +188,7 @@ def _run(args: argparse.Namespace) -> None:
     out = Path(args.out)
     html = Path(args.html) if args.html else None
     scenario = _run_scenario(args)
-    from pbvs_pin.experiments import run_scenario
+    from pbvs_pin.study.experiments import run_scenario
 
     if args.force:
         replace_run_folder(out)
@@ -218,7 +218,7 @@ def _run(args: argparse.Namespace) -> None:
             summary = run_scenario(
                 scenario, out, html, observer=live.show, eye_view=eye, bag=bag
             )[1]
-    from pbvs_pin.claims import verdict_lines
+    from pbvs_pin.study.claims import verdict_lines
 
     verdict = verdict_lines(summary)
     if verdict is not None:
@@ -262,9 +262,9 @@ def _reproduce(args: argparse.Namespace) -> None:
     for robot in args.engines:
         if robot not in ROBOT_NAMES:
             raise RobotNotFound(robot, ROBOT_NAMES)
-    from pbvs_pin.experiments import with_robot
-    from pbvs_pin.reproduction import reproduce
     from pbvs_pin.sim.scenario import load_scenario
+    from pbvs_pin.study.experiments import with_robot
+    from pbvs_pin.study.reproduction import reproduce
 
     for robot in args.robots:  # a name, a URDF or a robot file: checked before any run
         with_robot(load_scenario("experiment1"), robot)
@@ -290,14 +290,14 @@ def _view(args: argparse.Namespace) -> None:
 
 
 def _zoo(args: argparse.Namespace) -> None:
-    """``pbvs-pin zoo``: :func:`pbvs_pin.zoo.command`, its ``--set`` read as ``run``'s."""
+    """``pbvs-pin zoo``: :func:`pbvs_pin.study.zoo.command`, its ``--set`` read as ``run``'s."""
     args.changes = dict(_setting(text) for text in args.set)
     zoo_command(args)
 
 
 def _analyze(args: argparse.Namespace) -> None:
     """Passivity and L2-gain figures of a run."""
-    from pbvs_pin.analysis import analyze_run
+    from pbvs_pin.study.analysis import analyze_run
 
     result = analyze_run(
         Path(args.log), args.epsilon, Path(args.out) if args.out else None, t1=args.t1
@@ -309,8 +309,8 @@ def _analyze(args: argparse.Namespace) -> None:
 
 def _sweep(args: argparse.Namespace) -> None:
     """Run a grid or random sample of scenarios, or a robustness map."""
-    from pbvs_pin.robustness import map_path, write_map
-    from pbvs_pin.sweep import run_sweep
+    from pbvs_pin.study.robustness import map_path, write_map
+    from pbvs_pin.study.sweep import run_sweep
 
     robustness = map_path(args.spec)
     if robustness is not None:

@@ -1,4 +1,4 @@
-"""Tests of pbvs_pin.analysis: the paper's §4 figures and the passivity inequalities of a log.
+"""Tests of pbvs_pin.study.analysis: the paper's §4 figures and the passivity inequalities of a log.
 
 Synthetic logs check every number against a re-computation written here from the paper's
 equations (lambda from singular values, V1 by quadrature, integrals in closed form, t1 by brute
@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from pbvs_pin.analysis import analyze_log, analyze_run, choose_t1, min_eigenvalue_jjt
 from pbvs_pin.cli import main
 from pbvs_pin.exceptions import GainError, NonFiniteValue, PbvsError
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.study.analysis import analyze_log, analyze_run, choose_t1, min_eigenvalue_jjt
 
 SCALE = 100.0  # px per controller unit
 K = np.array([0.15, 0.2, 0.3])

@@ -15,13 +15,13 @@ import pytest
 from conftest import URDF_DIR
 from test_bad_cli import SPEC  # a valid sweep spec
 
-from pbvs_pin.analysis import analyze_log
 from pbvs_pin.cli import main
 from pbvs_pin.exceptions import LogError, ScenarioError, WrongType
 from pbvs_pin.sim.log import CHANNELS, RunLog
 from pbvs_pin.sim.scenario import load_scenario
-from pbvs_pin.sweep.spec import load_sweep
-from pbvs_pin.zoo import load_zoo
+from pbvs_pin.study.analysis import analyze_log
+from pbvs_pin.study.sweep.spec import load_sweep
+from pbvs_pin.study.zoo import load_zoo
 
 LONG = "x" * 300
 """A file name longer than any file system's limit (255 bytes)."""

@@ -25,10 +25,10 @@ from pathlib import Path
 import pytest
 
 from pbvs_pin.exceptions import PbvsError, ScenarioError, SweepIncomplete
-from pbvs_pin.sweep import TABLE, TIMINGS, load_sweep, run_sweep
-from pbvs_pin.sweep import driver as sweep_driver
-from pbvs_pin.sweep.executors import execute, probe_scheduler
-from pbvs_pin.sweep.table import check_folder
+from pbvs_pin.study.sweep import TABLE, TIMINGS, load_sweep, run_sweep
+from pbvs_pin.study.sweep import driver as sweep_driver
+from pbvs_pin.study.sweep.executors import execute, probe_scheduler
+from pbvs_pin.study.sweep.table import check_folder
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
@@ -192,7 +192,7 @@ def test_pool_workers_exit_when_the_sweep_process_is_killed(tmp_path):
             import os
             import signal
 
-            from pbvs_pin.sweep.executors import process_pool
+            from pbvs_pin.study.sweep.executors import process_pool
 
             if __name__ == "__main__":
                 pool = process_pool(2)

@@ -5,16 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pbvs_pin.baseline import (
+from pbvs_pin.sim.loop import simulate
+from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.sim.setup import build, solve_target_start
+from pbvs_pin.study.baseline import (
     GAIN_RULE,
     baseline_scenario,
     baseline_section,
     comparison_figures,
     matched_ibvs_gain,
 )
-from pbvs_pin.sim.loop import simulate
-from pbvs_pin.sim.scenario import load_scenario
-from pbvs_pin.sim.setup import build, solve_target_start
 
 FEATURE_ROWS = [0, 1, 3]  # u1, v1, v2 of the two flattened image points
 

@@ -14,7 +14,9 @@ import math
 
 import pytest
 
-from pbvs_pin.claims import (
+from pbvs_pin.cli import main
+from pbvs_pin.exceptions import PbvsError
+from pbvs_pin.study.claims import (
     CLAIMS,
     Clause,
     clause_text,
@@ -23,10 +25,8 @@ from pbvs_pin.claims import (
     too_short,
     verdict_text,
 )
-from pbvs_pin.cli import main
-from pbvs_pin.exceptions import PbvsError
-from pbvs_pin.report import readme_results
-from pbvs_pin.zoo import progress_line, zoo_table
+from pbvs_pin.study.report import readme_results
+from pbvs_pin.study.zoo import progress_line, zoo_table
 
 
 def summary(name: str = "experiment2", **changes) -> dict:
@@ -186,11 +186,11 @@ def test_the_docs_verdict_is_a_fresh_runs():
     """docs/scenarios.md quotes the verdict of the PR2's Experiment 2 (60 s, 1-2 min)."""
     from conftest import REPO_ROOT
 
-    from pbvs_pin.claims import verdict_lines
-    from pbvs_pin.experiments import with_robot
     from pbvs_pin.sim.loop import simulate
     from pbvs_pin.sim.metrics import summarize
     from pbvs_pin.sim.scenario import load_scenario
+    from pbvs_pin.study.claims import verdict_lines
+    from pbvs_pin.study.experiments import with_robot
 
     robot = str(REPO_ROOT / "robots" / "pr2.toml")
     scenario = with_robot(load_scenario("experiment2"), robot)

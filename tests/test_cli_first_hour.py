@@ -22,9 +22,9 @@ import pbvs_pin
 from pbvs_pin.catalogue import OTHER_ROBOTS
 from pbvs_pin.cli import build_parser, main
 from pbvs_pin.exceptions import OutputError
-from pbvs_pin.report import ENGINE_ROBOTS
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.scenario import scenario_dir
+from pbvs_pin.study.report import ENGINE_ROBOTS
 
 
 def _scenario_file(tmp_path: Path, duration: float, name: str = "short") -> Path:
@@ -174,7 +174,7 @@ def test_unwritable_output_is_refused_before_the_run(tmp_path, capsys, monkeypat
     blocker = tmp_path / "a_file"
     blocker.write_text("not a folder")
     simulated = []
-    monkeypatch.setattr("pbvs_pin.experiments.simulate", lambda *a, **k: simulated.append(1))
+    monkeypatch.setattr("pbvs_pin.study.experiments.simulate", lambda *a, **k: simulated.append(1))
     target = str(blocker / "sub" / ("replay.html" if option == "--html" else "run"))
     args = ["run", "experiment1", "--out", str(tmp_path / "ok"), option, target]
     status = main(args)

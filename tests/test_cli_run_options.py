@@ -19,7 +19,6 @@ import pytest
 from conftest import URDF_DIR
 
 from pbvs_pin.catalogue import chain_joints
-from pbvs_pin.claims import verdict_lines
 from pbvs_pin.cli import main
 from pbvs_pin.interrupts import (
     held_interrupts,
@@ -28,6 +27,7 @@ from pbvs_pin.interrupts import (
     simulating,
 )
 from pbvs_pin.sim.log import RunLog
+from pbvs_pin.study.claims import verdict_lines
 
 
 @pytest.fixture
@@ -39,7 +39,7 @@ def scenario_of_run(monkeypatch):
         caught.append(scenario)
         raise SystemExit(0)
 
-    monkeypatch.setattr("pbvs_pin.experiments.run_scenario", trap)
+    monkeypatch.setattr("pbvs_pin.study.experiments.run_scenario", trap)
     return caught
 
 
@@ -102,7 +102,7 @@ def test_reproduce_takes_a_robot_file(tmp_path, monkeypatch):
     robot_file = tmp_path / "my_robot.toml"
     robot_file.write_text('[robot]\nname = "pioneer_z1"\n')
     asked = []
-    monkeypatch.setattr("pbvs_pin.reproduction.reproduce", lambda out, **kw: asked.append(kw))
+    monkeypatch.setattr("pbvs_pin.study.reproduction.reproduce", lambda out, **kw: asked.append(kw))
     status = main(["reproduce", "--robots", str(robot_file), "pioneer_ur5", "--engines",
                    "--out", str(tmp_path / "results")])  # fmt: skip
     assert status == 0
@@ -149,7 +149,7 @@ def test_run_prints_its_verdict_first_and_json_only_when_asked(tmp_path, capsys,
         asked.append(eye_view)
         return None, summary
 
-    monkeypatch.setattr("pbvs_pin.experiments.run_scenario", finished)
+    monkeypatch.setattr("pbvs_pin.study.experiments.run_scenario", finished)
     out = tmp_path / "out"
     assert main(["run", "experiment4", "--out", str(out), *options]) == 0
     lines = capsys.readouterr().out.splitlines()
@@ -281,7 +281,7 @@ def test_ctrl_c_at_any_instant_loses_nothing(tmp_path, capsys, monkeypatch):
 
     The instants come from an uninterrupted run (after a warm-up run loads the kernels).
     """
-    import pbvs_pin.experiments as experiments
+    import pbvs_pin.study.experiments as experiments
 
     window: dict[str, float] = {}
     simulate = experiments.simulate

@@ -3,7 +3,7 @@
 The loop is ``examples/own_loop_pioneer_cyton.py``: public names only, its own plant (velocity
 loops with first-order lags integrated at 1 kHz), its own pinhole camera whose frames arrive
 late, stamped with their capture time, its own laser. The rules are the report's
-(:data:`pbvs_pin.claims.CLAIMS`), evaluated here on the true image error with their own
+(:data:`pbvs_pin.study.claims.CLAIMS`), evaluated here on the true image error with their own
 arithmetic; ``docs/controller.rst``'s latency table is checked against fresh runs.
 """
 

@@ -15,7 +15,7 @@ import pytest
 
 from pbvs_pin.sim.scenario import OBSTACLE_KINDS, Scenario
 from pbvs_pin.sim.sections import SECTIONS
-from pbvs_pin.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS
+from pbvs_pin.study.sweep.spec import SWEEP_DEFAULTS, SWEEP_KEY_DOCS
 from pbvs_pin.toml_keys import keys_of
 
 REPO_ROOT = Path(__file__).resolve().parents[1]

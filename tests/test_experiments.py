@@ -3,7 +3,7 @@
 Each experiment runs once per module (about 40 s in all). Every figure asserted here is
 computed from the log in this file; :func:`pbvs_pin.sim.metrics.summarize` is checked against
 the same computation, and the report is built from the summaries of these runs (running
-:func:`pbvs_pin.reproduction.reproduce` would repeat the four runs with figures and replays).
+:func:`pbvs_pin.study.reproduction.reproduce` would repeat the four runs with figures and replays).
 The README's results table is checked against these fresh runs, and rows are checked to flag
 a lost target, a collision, a joint past its limit and v_ref at its limit.
 
@@ -27,14 +27,14 @@ import numpy as np
 import pytest
 from simhelpers import IMAGE_HEIGHT_PX, TRANSIENT_S, feature_error
 
-from pbvs_pin.claims import claim_met
-from pbvs_pin.experiments import PAPER_CLAIMS
-from pbvs_pin.report import readme_block, readme_results, run_row
-from pbvs_pin.reproduction import _report
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import FINAL_WINDOW, oscillation_rms, summarize
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.study.claims import claim_met
+from pbvs_pin.study.experiments import PAPER_CLAIMS
+from pbvs_pin.study.report import readme_block, readme_results, run_row
+from pbvs_pin.study.reproduction import _report
 
 HALF_IMAGE_HEIGHT_PX = IMAGE_HEIGHT_PX / 2
 
@@ -274,7 +274,7 @@ def test_readme_results_match_fresh_runs(runs):
     readme = readme_block((REPO_ROOT / "README.md").read_text())
     assert readme == readme_results(reference), (
         "README results differ from fresh runs: regenerate with pbvs-pin reproduce --out "
-        "results && python -m pbvs_pin.report README.md docs/gallery.md results"
+        "results && python -m pbvs_pin.study.report README.md docs/gallery.md results"
     )
     report = _report(reference, [], [])
     numbers = [cell for line in readme.splitlines()[3:-1] for cell in line.split(" | ")[3:7]]

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.experiments import run_scenario
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.study.experiments import run_scenario
 from pbvs_pin.viz.eye_view import STRIP_PANELS, write_eye_view
 
 pytestmark = pytest.mark.filterwarnings(
@@ -104,8 +104,8 @@ def test_a_logged_robot_from_a_robot_file_names_that_file_when_rebuilt():
     from conftest import REPO_ROOT
 
     from pbvs_pin.exceptions import PbvsWarning
-    from pbvs_pin.experiments import with_robot
     from pbvs_pin.sim.loop import simulate
+    from pbvs_pin.study.experiments import with_robot
     from pbvs_pin.viz.run_scene import log_robot
 
     path = REPO_ROOT / "robots" / "vega_1.toml"  # warns: wheel links below the floor

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import pytest
 
-from pbvs_pin.findings import IDEALISATIONS, IDEALISED, findings_section, without
-from pbvs_pin.report import CLAIMS, engine_row, run_row, verdict
+from pbvs_pin.study.findings import IDEALISATIONS, IDEALISED, findings_section, without
+from pbvs_pin.study.report import CLAIMS, engine_row, run_row, verdict
 
 EXPERIMENTS = list(CLAIMS)
 
@@ -154,7 +154,7 @@ def test_each_variant_drops_only_its_own_keys(name):
 
 def test_the_report_tables_the_idealised_runs_behind_the_findings():
     """Every run the findings' idealisation lines count is a row, its inequalities written out."""
-    from pbvs_pin.reproduction import _idealised_section
+    from pbvs_pin.study.reproduction import _idealised_section
 
     def result(name: str, lhs27: float) -> dict:
         return {
@@ -207,7 +207,7 @@ def test_every_comparison_run_that_fails_its_rule_is_named():
 
 
 def test_reproduce_progress_rows_name_the_plant_and_the_compensation_mode():
-    from pbvs_pin.reproduction import progress_row
+    from pbvs_pin.study.reproduction import progress_row
 
     s = summary("experiment4", final=5.68, compensation="all", engine="mujoco")
     row = progress_row(7, 60, s)

@@ -45,12 +45,12 @@ from hypothesis import strategies as st
 from pbvs_pin import MobileManipulator
 from pbvs_pin.cli import main
 from pbvs_pin.exceptions import PbvsError, PbvsWarning
-from pbvs_pin.experiments import with_robot
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import SCHEMA, load_scenario, scenario_dir
-from pbvs_pin.sweep.spec import load_sweep
-from pbvs_pin.sweep.table import TABLE, TIMINGS, ResultTable, check_folder, read_table
+from pbvs_pin.study.experiments import with_robot
+from pbvs_pin.study.sweep.spec import load_sweep
+from pbvs_pin.study.sweep.table import TABLE, TIMINGS, ResultTable, check_folder, read_table
 
 SCALE = max(1, int(os.environ.get("PBVS_FUZZ_EXAMPLES", "1")))
 """Multiplier of every test's number of cases."""
@@ -527,7 +527,7 @@ def test_the_command_line_refuses_in_one_line_or_starts_the_run(tmp_path_factory
     def trap(*args, **kwargs):
         raise _Trapped
 
-    monkeypatch.setattr("pbvs_pin.experiments.run_scenario", trap)
+    monkeypatch.setattr("pbvs_pin.study.experiments.run_scenario", trap)
     stderr = io.StringIO()
     with contextlib.redirect_stderr(stderr), contextlib.redirect_stdout(io.StringIO()):
         status = _outcome("command line", lambda: main(argv), allowed=(_Trapped, SystemExit))

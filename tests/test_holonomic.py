@@ -26,7 +26,7 @@ from pbvs_pin.servo import ServoModel
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario
-from pbvs_pin.zoo import load_zoo
+from pbvs_pin.study.zoo import load_zoo
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 

@@ -128,7 +128,7 @@ def test_a_run_lists_the_links_that_got_an_inertia_in_its_meta():
 
     from pbvs_pin.sim.loop import simulate
     from pbvs_pin.sim.scenario import load_scenario
-    from pbvs_pin.zoo import load_zoo
+    from pbvs_pin.study.zoo import load_zoo
 
     iiwa = next(robot for robot in load_zoo(REPO_ROOT / "robots") if robot.name == "pioneer_iiwa14")
     values = iiwa.scenario_values

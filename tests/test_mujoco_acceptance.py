@@ -1,6 +1,6 @@
 """Acceptance on the MuJoCo plant: the four experiments hold the target on real wheels.
 
-Issue 9's bounds, on each robot of :data:`pbvs_pin.report.ENGINE_ROBOTS` with the full
+Issue 9's bounds, on each robot of :data:`pbvs_pin.study.report.ENGINE_ROBOTS` with the full
 shipped scenarios and the default sensing (wheel odometry, encoder velocities, one frame of
 camera latency): max |feature error| over the last 5 s below 5 px (Experiment 4: 1 px), and
 the target never lost. The report's two-plant table is built from these runs.
@@ -20,10 +20,13 @@ import numpy as np
 import pytest
 
 from pbvs_pin.catalogue import build_robot
-from pbvs_pin.experiments import PAPER_CLAIMS
 from pbvs_pin.home import HomeCriteria
 from pbvs_pin.mujoco_support import centre_of_mass_margins, support_polygon
-from pbvs_pin.report import (
+from pbvs_pin.sim.loop import simulate
+from pbvs_pin.sim.metrics import summarize
+from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.study.experiments import PAPER_CLAIMS
+from pbvs_pin.study.report import (
     ENGINE_ROBOTS,
     ENGINES_BEGIN,
     ENGINES_END,
@@ -31,9 +34,6 @@ from pbvs_pin.report import (
     readme_block,
     readme_engines,
 )
-from pbvs_pin.sim.loop import simulate
-from pbvs_pin.sim.metrics import summarize
-from pbvs_pin.sim.scenario import load_scenario
 
 HOLD_PX = 5.0
 """Largest feature error over the last 5 s [px] that counts as holding the target."""
@@ -123,5 +123,5 @@ def test_readme_mujoco_results_match_fresh_runs(summaries):
         list(summaries.values())
     ), (
         "docs/gallery.md's MuJoCo results differ from fresh runs: regenerate with pbvs-pin "
-        "reproduce --out results && python -m pbvs_pin.report README.md docs/gallery.md results"
+        "reproduce --out results && python -m pbvs_pin.study.report README.md docs/gallery.md results"
     )

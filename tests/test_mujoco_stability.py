@@ -24,7 +24,7 @@ from pbvs_pin.mujoco_stability import convex_hull, polygon_margin, support_margi
 from pbvs_pin.mujoco_support import centre_of_mass_margins, support_polygon
 from pbvs_pin.servo import ServoModel
 from pbvs_pin.sim.sections import RobotSection
-from pbvs_pin.zoo import load_zoo
+from pbvs_pin.study.zoo import load_zoo
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 PIONEER_HALF_WHEELBASE = 0.134

@@ -23,7 +23,7 @@ from pbvs_pin.mujoco_wheels import KEY_WHEELS
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.sections import RobotSection
-from pbvs_pin.zoo import load_zoo
+from pbvs_pin.study.zoo import load_zoo
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 RADIUS, TRACK = 0.0508, 0.3407

@@ -13,16 +13,8 @@ from conftest import REPO_ROOT
 
 from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.catalogue import load_robot
-from pbvs_pin.claims import claim_met
 from pbvs_pin.detection import ColourDetector
 from pbvs_pin.exceptions import PbvsWarning, ScenarioError
-from pbvs_pin.report import (
-    RENDERED_BEGIN,
-    RENDERED_COLUMNS,
-    RENDERED_END,
-    readme_block,
-    rendered_results,
-)
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import detection_summary, summarize
 from pbvs_pin.sim.obstacles import BoxObstacle
@@ -31,6 +23,14 @@ from pbvs_pin.sim.rendered_camera import ImageEffects, RenderedCamera
 from pbvs_pin.sim.scenario import load_scenario, parse_scenario
 from pbvs_pin.sim.sections import RobotSection
 from pbvs_pin.sim.setup import build
+from pbvs_pin.study.claims import claim_met
+from pbvs_pin.study.report import (
+    RENDERED_BEGIN,
+    RENDERED_COLUMNS,
+    RENDERED_END,
+    readme_block,
+    rendered_results,
+)
 from pbvs_pin.validation import read_toml
 
 CAMERA = CameraIntrinsics(600.0, 628, 582)

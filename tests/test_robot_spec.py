@@ -18,10 +18,10 @@ from pbvs_pin.base import Omnidirectional
 from pbvs_pin.catalogue import PIONEER_MOUNT, RECIPES, build_robot
 from pbvs_pin.cli import main
 from pbvs_pin.exceptions import PbvsWarning, ScenarioError
-from pbvs_pin.experiments import with_robot
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.sections import RobotSection
+from pbvs_pin.study.experiments import with_robot
 
 UR5 = RECIPES["pioneer_ur5"]
 UR5_JOINTS = (

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from pbvs_pin.robustness import (
+from pbvs_pin.study.robustness import (
     VARIANTS,
     breaking_point,
     load_map,

@@ -23,9 +23,9 @@ from rosbags.typesys import Stores, get_typestore
 
 import pbvs_pin.ros  # noqa: F401  (the middleware, before rclpy's messages)
 from pbvs_pin.exceptions import LogError
-from pbvs_pin.experiments import run_scenario
 from pbvs_pin.ros.bag_replay import replay_bag
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.study.experiments import run_scenario
 from pbvs_pin.viz.eye_view import eye_views
 from pbvs_pin.viz.run_scene import log_robot
 

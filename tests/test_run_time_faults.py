@@ -32,7 +32,7 @@ from pbvs_pin.compile_cache import announce_compiles, cached_kernels
 from pbvs_pin.control.gating import RESTART_AFTER, FaultCounts, InnovationGate
 from pbvs_pin.control.step import fused_control_step
 from pbvs_pin.exceptions import WrongType
-from pbvs_pin.experiments import with_robot
+from pbvs_pin.study.experiments import with_robot
 
 SCALE = max(1, int(os.environ.get("PBVS_FUZZ_EXAMPLES", "1")))
 """Multiplier of the number of faults (see the module docstring)."""

@@ -137,9 +137,9 @@ def test_stretch_re1_holds_experiment2_while_its_arm_sits_at_its_stops():
     """
     from conftest import REPO_ROOT
 
-    from pbvs_pin.experiments import with_robot
     from pbvs_pin.sim.loop import simulate
     from pbvs_pin.sim.scenario import load_scenario
+    from pbvs_pin.study.experiments import with_robot
 
     robot = str(REPO_ROOT / "robots" / "stretch_re1.toml")
     scenario = with_robot(load_scenario("experiment2"), robot)

@@ -1,4 +1,4 @@
-"""Tests of pbvs_pin.sweep: specs, run ids, executors, resume and failure recording.
+"""Tests of pbvs_pin.study.sweep: specs, run ids, executors, resume and failure recording.
 
 One small sweep (4 runs of 1 s, two of them with an invalid filter gain) is run on the local
 process pool, on a Dask LocalCluster on loopback, after a run limit and after a SIGKILL; every
@@ -24,7 +24,7 @@ from pbvs_pin.cli import main
 from pbvs_pin.exceptions import ScenarioError
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.scenario import load_scenario
-from pbvs_pin.sweep import (
+from pbvs_pin.study.sweep import (
     TABLE,
     TIMINGS,
     RunTask,

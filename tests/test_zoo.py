@@ -21,7 +21,7 @@ from pbvs_pin.exceptions import OutputError, PbvsWarning
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.sections import RobotSection
-from pbvs_pin.zoo import (
+from pbvs_pin.study.zoo import (
     PAGE_BEGIN,
     PAGE_END,
     errors,

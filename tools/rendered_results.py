@@ -3,8 +3,8 @@
 Run: ``python tools/rendered_results.py [docs/rendered_camera.rst]`` (about 5 minutes of
 simulation; ``MUJOCO_GL=egl`` is set when not given). The reference robot's four shipped
 experiments with ``camera.model = "rendered"``, each on the Pinocchio and the MuJoCo plant;
-the table between :data:`pbvs_pin.report.RENDERED_BEGIN` and ``RENDERED_END`` is replaced by
-:func:`pbvs_pin.report.rendered_results` of their summaries. ``tests/test_render.py`` checks
+the table between :data:`pbvs_pin.study.report.RENDERED_BEGIN` and ``RENDERED_END`` is replaced by
+:func:`pbvs_pin.study.report.rendered_results` of their summaries. ``tests/test_render.py`` checks
 Experiment 1's rows against fresh runs.
 """
 
@@ -17,11 +17,11 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before MuJoCo is imported
 import sys
 from pathlib import Path
 
-from pbvs_pin.report import RENDERED_BEGIN, RENDERED_END, readme_block, rendered_results
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario
-from pbvs_pin.zoo import ENGINES, EXPERIMENTS
+from pbvs_pin.study.report import RENDERED_BEGIN, RENDERED_END, readme_block, rendered_results
+from pbvs_pin.study.zoo import ENGINES, EXPERIMENTS
 
 
 def rendered_summary(experiment: str, engine: str) -> dict:

@@ -40,7 +40,7 @@ symmetric and positive definite on the range of ``J^T``, where ``nu`` lives. Tha
 the assumption that changes: (13)-(14) and (27) hold with the power the controller draws,
 ``nu^T H nu = -nu^T u_fb``, in place of ``|nu|^2``, and ``V1`` still decreases along the loop
 when the feed-forward is exact (``dV1/dt = -nu^T H nu``). The analysis evaluates them so
-(:mod:`pbvs_pin.analysis.passivity`).
+(:mod:`pbvs_pin.study.analysis.passivity`).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ with ``J#`` the same (weighted, damped) pseudo-inverse, the same secondary-objec
 eq. (34) and the same velocity saturation as the passivity controller, so that the comparison
 is about the feedback law only. ``J`` and ``e`` are taken in controller units (``J# e`` does
 not depend on the unit; the damping threshold does). How ``lambda`` is chosen:
-:func:`pbvs_pin.baseline.matched_ibvs_gain`.
+:func:`pbvs_pin.study.baseline.matched_ibvs_gain`.
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """A run's passivity signals, derived after the run: eqs. (9), (13)-(14), (27) and (31).
 
 The controller's set (its own ``J``, ``J_o``) and the true-state set (the true robot's, the true
-target's) of :mod:`pbvs_pin.analysis.passivity`, in controller units, for every sample at once.
+target's) of :mod:`pbvs_pin.study.analysis.passivity`, in controller units, for every sample at
+once.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 r"""Robustness of the servo to the target's motion: the paper's §4, eqs. (31)-(42).
 
-Notation as in :mod:`pbvs_pin.analysis` (controller units): ``e`` the true feature error,
+Notation as in :mod:`pbvs_pin.study.analysis` (controller units): ``e`` the true feature error,
 ``K_c(e) e`` of eq. (8), ``gamma = J_o (pdot - phat_dot)`` of eq. (31).
 
 .. math::
@@ -52,8 +52,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from pbvs_pin.analysis.signals import TOLERANCE, finite_max, integrate, suffix_max
 from pbvs_pin.control.kinematic import storage_function
+from pbvs_pin.study.analysis.signals import TOLERANCE, finite_max, integrate, suffix_max
 
 
 def min_eigenvalue_jjt(jacobian: npt.ArrayLike) -> float:
@@ -143,7 +143,7 @@ def bounds_after_t1(
 
     Returns:
         ``gamma_inf``, ``condition_31``, ``bound_38``, ``bound_39`` and ``l2_gain_42`` of
-        :func:`pbvs_pin.analysis.analyze_log`.
+        :func:`pbvs_pin.study.analysis.analyze_log`.
     """
     k_min = float(k.min())
     after = slice(start, None)

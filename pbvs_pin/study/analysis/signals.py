@@ -1,8 +1,9 @@
 r"""Sampled-signal helpers of the analysis: ``K_c(e) e`` of eq. (8), integrals, running maxima.
 
-Shared by :mod:`~pbvs_pin.analysis.motion_bounds`, :mod:`~pbvs_pin.analysis.passivity` and
-:mod:`~pbvs_pin.analysis.bound_plots`. Samples logged as NaN (no measurement) are skipped or given
-an explicit value, as each function says.
+Shared by :mod:`~pbvs_pin.study.analysis.motion_bounds`,
+:mod:`~pbvs_pin.study.analysis.passivity` and :mod:`~pbvs_pin.study.analysis.bound_plots`.
+Samples logged as NaN (no measurement) are skipped or given an explicit value, as each function
+says.
 """
 
 from __future__ import annotations

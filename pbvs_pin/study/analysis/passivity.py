@@ -1,6 +1,6 @@
 r"""Passivity of the servo loop over a run: the paper's §3.2-3.3, (9), (13)/(14) and (27).
 
-Notation as in :mod:`pbvs_pin.analysis`; ``V1`` is the storage function of eq. (7),
+Notation as in :mod:`pbvs_pin.study.analysis`; ``V1`` is the storage function of eq. (7),
 ``nu = J^T K_c(e) e`` and ``v~ = v - u`` the velocity-tracking error.
 
 .. math::
@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from pbvs_pin.analysis.signals import TOLERANCE, integrate
+from pbvs_pin.study.analysis.signals import TOLERANCE, integrate
 
 SIGNAL_SETS = {
     "true_state": ("nu_true", "passivity_input_true", "storage_true"),

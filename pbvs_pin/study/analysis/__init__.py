@@ -26,11 +26,11 @@ module                     contents
 =========================  =====================================================================
 """
 
-from pbvs_pin.analysis.analyze import REQUIRED_CHANNELS, analyze_log
-from pbvs_pin.analysis.bound_plots import plot_analysis
-from pbvs_pin.analysis.motion_bounds import choose_t1, min_eigenvalue_jjt, ultimate_bound
-from pbvs_pin.analysis.run_report import analyze_run, report_markdown
-from pbvs_pin.analysis.signals import TOLERANCE, gain_times_error, integrate
+from pbvs_pin.study.analysis.analyze import REQUIRED_CHANNELS, analyze_log
+from pbvs_pin.study.analysis.bound_plots import plot_analysis
+from pbvs_pin.study.analysis.motion_bounds import choose_t1, min_eigenvalue_jjt, ultimate_bound
+from pbvs_pin.study.analysis.run_report import analyze_run, report_markdown
+from pbvs_pin.study.analysis.signals import TOLERANCE, gain_times_error, integrate
 
 __all__ = [
     "REQUIRED_CHANNELS",

@@ -268,7 +268,7 @@ def verdict_lines(summary: dict) -> str | None:
     """The two lines ``pbvs-pin run`` prints: the verdict on the paper's claim, and the rule.
 
     The first names the failed clauses with their figures (every clause when all hold), or
-    why the run is not judged (:func:`pbvs_pin.claims.judge`); the second gives the rule.
+    why the run is not judged (:func:`pbvs_pin.study.claims.judge`); the second gives the rule.
     """
     judgement = judge(summary)
     if judgement["rule"] is None:

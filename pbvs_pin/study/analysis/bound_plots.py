@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from pbvs_pin.analysis.passivity import SIGNAL_SETS
-from pbvs_pin.analysis.signals import gain_times_error, suffix_max
 from pbvs_pin.sim.log import RunLog
+from pbvs_pin.study.analysis.passivity import SIGNAL_SETS
+from pbvs_pin.study.analysis.signals import gain_times_error, suffix_max
 
 
 def plot_analysis(log: RunLog, result: dict[str, Any], folder: Path) -> list[Path]:
@@ -25,7 +25,7 @@ def plot_analysis(log: RunLog, result: dict[str, Any], folder: Path) -> list[Pat
       ``||K_c e||`` against ``||gamma||_inf / lambda'`` (38).
     - ``storage.png``: ``V1(t)``, the supply ``int nu^T (v + J# J_o pdot)`` against ``-V1(0)``
       (9), and ``int ||nu||^2`` against ``beta`` (14), on the true-state signals
-      (:data:`pbvs_pin.analysis.passivity.SIGNAL_SETS`).
+      (:data:`pbvs_pin.study.analysis.passivity.SIGNAL_SETS`).
     """
     import matplotlib
 

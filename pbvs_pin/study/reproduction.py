@@ -1,7 +1,7 @@
 """The paper's reproduction: its four experiments on the robots, and the report's page.
 
-:func:`reproduce` runs each scenario with :func:`pbvs_pin.experiments.run_scenario` and
-assembles ``report.md``; the report's tables and rules live in :mod:`pbvs_pin.report`.
+:func:`reproduce` runs each scenario with :func:`pbvs_pin.study.experiments.run_scenario` and
+assembles ``report.md``; the report's tables and rules live in :mod:`pbvs_pin.study.report`.
 """
 
 from __future__ import annotations
@@ -11,9 +11,14 @@ from pathlib import Path
 from typing import Any
 
 from pbvs_pin.catalogue import OTHER_ROBOTS, REFERENCE_ROBOT
-from pbvs_pin.experiments import run_scenario, with_robot
-from pbvs_pin.findings import IDEALISATIONS, IDEALISED, findings_section, without
-from pbvs_pin.report import (
+from pbvs_pin.sim.log import (
+    write_text_atomically,
+)
+from pbvs_pin.sim.loop import simulate
+from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.study.experiments import run_scenario, with_robot
+from pbvs_pin.study.findings import IDEALISATIONS, IDEALISED, findings_section, without
+from pbvs_pin.study.report import (
     CLAIMS,
     COMPENSATION_MODES,
     ENGINE_ROBOTS,
@@ -25,11 +30,6 @@ from pbvs_pin.report import (
     run_row,
     runs_table,
 )
-from pbvs_pin.sim.log import (
-    write_text_atomically,
-)
-from pbvs_pin.sim.loop import simulate
-from pbvs_pin.sim.scenario import load_scenario
 
 
 def progress_row(done: int, jobs: int, summary: dict[str, Any]) -> str:
@@ -59,7 +59,7 @@ def reproduce(
     """Run Experiments 1-4 (reference robot, other robots, IBVS, compensation); write the report.
 
     The reference runs get figures, replays and analyses. Each run's row
-    (:func:`pbvs_pin.report.run_row`) is echoed as it finishes, a line before each figure,
+    (:func:`pbvs_pin.study.report.run_row`) is echoed as it finishes, a line before each figure,
     replay and analysis step, and the table of every robot's runs at the end.
 
     Args:
@@ -67,23 +67,23 @@ def reproduce(
         robots: Other robots to repeat the experiments on.
         baseline: Also run the classic IBVS baseline on the reference robot.
         compensation: Also run each experiment with the compensation modes of
-            :data:`pbvs_pin.report.COMPENSATION_MODES` other than the scenario's own.
+            :data:`pbvs_pin.study.report.COMPENSATION_MODES` other than the scenario's own.
         echo: Where progress lines go.
         replays: Also write an HTML replay of each reference run.
-        robustness: Also run the robustness map of :mod:`pbvs_pin.robustness` (each camera
+        robustness: Also run the robustness map of :mod:`pbvs_pin.study.robustness` (each camera
             fault alone, Experiment 1, without and with the estimator's fault handling) and draw
             ``robustness.png``.
         engines: Robots whose experiments are also run on the MuJoCo plant and reported
             beside their Pinocchio-plant runs (a Pinocchio run not made above is made).
         idealised: Where a passivity inequality fails on a reference run, run the
             experiments again with the paper's idealisations, and without each of them
-            (:mod:`pbvs_pin.findings`), so that the findings can say which one it needs.
+            (:mod:`pbvs_pin.study.findings`), so that the findings can say which one it needs.
 
     Returns:
         Path of the markdown report.
     """
-    from pbvs_pin.analysis import analyze_run
-    from pbvs_pin.baseline import (
+    from pbvs_pin.study.analysis import analyze_run
+    from pbvs_pin.study.baseline import (
         baseline_scenario,
         baseline_section,
         comparison_figures,
@@ -166,7 +166,7 @@ def _idealised_runs(
     Only when (14) with beta_1 = 0 or (27) fails on a reference run; None otherwise. The runs
     go to ``out/idealised/VARIANT/EXPERIMENT`` (log and summary, no figures).
     """
-    from pbvs_pin.analysis import analyze_run
+    from pbvs_pin.study.analysis import analyze_run
 
     failing = any(
         not (a["passivity_14"]["holds_with_beta_1_zero"] and a["passivity_27"]["holds"])
@@ -254,7 +254,7 @@ def _engines_section(plants: list[dict[str, Any]]) -> str:
 
 def _robustness_map(out: Path, echo: Callable[[str], None]) -> str:
     """Run the robustness map, draw ``out/robustness.png``; the report's section."""
-    from pbvs_pin.robustness import write_map
+    from pbvs_pin.study.robustness import write_map
 
     echo("robustness map: each camera fault alone, without and with the estimator's fault handling")
     return write_map(out, echo=echo)[1]

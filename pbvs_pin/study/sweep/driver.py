@@ -10,16 +10,16 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from pbvs_pin.exceptions import PbvsError, SweepIncomplete
-from pbvs_pin.sweep.executors import (
+from pbvs_pin.study.sweep.executors import (
     dask_executor,
     execute,
     probe_scheduler,
     process_pool,
     worker_environment,
 )
-from pbvs_pin.sweep.spec import load_sweep
-from pbvs_pin.sweep.summary_plots import plot_sweep
-from pbvs_pin.sweep.table import (
+from pbvs_pin.study.sweep.spec import load_sweep
+from pbvs_pin.study.sweep.summary_plots import plot_sweep
+from pbvs_pin.study.sweep.table import (
     TABLE,
     TIMINGS,
     ResultTable,

@@ -1,7 +1,8 @@
 """All the analysis figures of one run's log, as a JSON-serialisable dict.
 
-Composes :mod:`~pbvs_pin.analysis.motion_bounds` (eqs. (31)-(42)) and
-:mod:`~pbvs_pin.analysis.passivity` (eqs. (9), (13)/(14)); notation in :mod:`pbvs_pin.analysis`.
+Composes :mod:`~pbvs_pin.study.analysis.motion_bounds` (eqs. (31)-(42)) and
+:mod:`~pbvs_pin.study.analysis.passivity` (eqs. (9), (13)/(14)); notation in
+:mod:`pbvs_pin.study.analysis`.
 """
 
 from __future__ import annotations
@@ -11,11 +12,11 @@ from typing import Any
 
 import numpy as np
 
-from pbvs_pin.analysis.motion_bounds import bounds_after_t1, choose_t1
-from pbvs_pin.analysis.passivity import SIGNAL_SETS, passivity_of_log
-from pbvs_pin.analysis.signals import finite_max, gain_times_error
 from pbvs_pin.exceptions import GainError, LogError, NonFiniteValue, PbvsError, WrongType
 from pbvs_pin.sim.log import RunLog
+from pbvs_pin.study.analysis.motion_bounds import bounds_after_t1, choose_t1
+from pbvs_pin.study.analysis.passivity import SIGNAL_SETS, passivity_of_log
+from pbvs_pin.study.analysis.signals import finite_max, gain_times_error
 from pbvs_pin.validation import as_number, as_numbers
 
 REQUIRED_CHANNELS = (
@@ -72,7 +73,7 @@ def analyze_log(
         log: A run's log.
         epsilon: ``eps`` of eq. (31), ``0 < eps < 1``.
         t1: Start [s] of the ultimate-bound phase; None for the default rule
-            (:mod:`pbvs_pin.analysis.motion_bounds`).
+            (:mod:`pbvs_pin.study.analysis.motion_bounds`).
         source: Name of the log, for error messages and the report.
 
     Returns:

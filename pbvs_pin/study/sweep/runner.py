@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from pbvs_pin.sweep.spec import RunTask
+from pbvs_pin.study.sweep.spec import RunTask
 
 ANALYSIS_COLUMNS = (
     "lambda",
@@ -40,7 +40,7 @@ ANALYSIS_COLUMNS = (
     "passivity14_rhs",
     "passivity14_holds",
 )
-"""Analysis figures in the table (see :func:`pbvs_pin.analysis.analyze_log`)."""
+"""Analysis figures in the table (see :func:`pbvs_pin.study.analysis.analyze_log`)."""
 
 TIMING_KEYS = ("wall_time_s", "real_time_factor")
 """Figures of ``summarize`` that depend on the machine; written to ``timings.csv``."""
@@ -63,9 +63,9 @@ def run_one(task: RunTask) -> tuple[dict[str, Any], dict[str, Any]]:
     Returns:
         The table row (JSON-able scalars and lists) and the timing row.
     """
-    from pbvs_pin.analysis import analyze_log
     from pbvs_pin.sim.loop import simulate
     from pbvs_pin.sim.metrics import summarize
+    from pbvs_pin.study.analysis import analyze_log
 
     started = time.perf_counter()
     row: dict[str, Any] = {

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from pbvs_pin.sweep.table import read_table
+from pbvs_pin.study.sweep.table import read_table
 
 
 def plot_sweep(table_path: Path, folder: Path) -> list[Path]:

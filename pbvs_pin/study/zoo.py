@@ -1,18 +1,17 @@
 """The robot zoo: the paper's four experiments on every robot file of a folder, on both plants.
 
 Each robot is a TOML file with a ``[robot]`` table, written as a user would write it (the
-repository's ``robots/`` folder holds robots from several PyPI packages of robot
-descriptions). :func:`run_zoo` runs each robot through Experiments 1-4 on the Pinocchio and
-the MuJoCo plants with the shipped gains, in a process pool, and keeps each run's summary in
+repository's ``robots/`` folder holds robots from several PyPI packages of robot descriptions).
+:func:`run_zoo` runs each robot through Experiments 1-4 on the Pinocchio and the MuJoCo plants with
+the shipped gains, in a process pool, and keeps each run's summary in
 ``<out>/<robot>/<experiment>_<engine>.json`` (a summary already there is not run again).
-:func:`zoo_table` writes them as the reStructuredText page ``docs/zoo.rst``: per robot its
-package, degrees of freedom and joint types, and per experiment and plant the max error over
-the last 5 s, the target-lost samples, the largest excursion past a joint limit, the
-oscillation RMS, the share of samples where the loop-gain net cut the gains, and whether the
-run meets the paper's claim by its experiment's rule (:data:`pbvs_pin.claims.CLAIMS`): ``yes``,
-``**no**`` with the failed clauses' names, or ``not judged`` for a run too short for the rule
-(``--duration`` under 7 s). Each run's verdict is printed as its robot finishes
-(:func:`progress_line`).
+:func:`zoo_table` writes them as the reStructuredText page ``docs/zoo.rst``: per robot its package,
+degrees of freedom and joint types, and per experiment and plant the max error over the last 5 s,
+the target-lost samples, the largest excursion past a joint limit, the oscillation RMS, the share
+of samples where the loop-gain net cut the gains, and whether the run meets the paper's claim by
+its experiment's rule (:data:`pbvs_pin.study.claims.CLAIMS`): ``yes``, ``**no**`` with the failed
+clauses' names, or ``not judged`` for a run too short for the rule (``--duration`` under 7 s). Each
+run's verdict is printed as its robot finishes (:func:`progress_line`).
 
 Run it with ``pbvs-pin zoo robots --out zoo_results --page docs/zoo.rst``.
 """
@@ -35,11 +34,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pbvs_pin.claims import failed, judge, verdict_text
 from pbvs_pin.exceptions import PbvsError, PbvsWarning
 from pbvs_pin.outputs import Output
-from pbvs_pin.report import rst_row
 from pbvs_pin.shipped import urdf_dir
+from pbvs_pin.study.claims import failed, judge, verdict_text
+from pbvs_pin.study.report import rst_row
 from pbvs_pin.validation import read_toml
 
 if TYPE_CHECKING:  # the command's arguments load without Pinocchio (pbvs-pin --help)
@@ -270,7 +269,7 @@ def _cell(row: dict[str, Any]) -> list[str]:
 
 
 def _judgement(row: dict[str, Any]) -> dict[str, Any]:
-    """A zoo row's verdict in the form of :func:`pbvs_pin.claims.judge` (older rows: no clauses)."""
+    """A zoo row's verdict as :func:`pbvs_pin.study.claims.judge` gives it (old rows: none)."""
     return {"met": row["claim_met"], "not_judged": row.get("not_judged"),
             "clauses": row.get("clauses", [])}  # fmt: skip
 

@@ -12,7 +12,7 @@ executor.
 **Lost infrastructure.** A run that could not finish because its executor failed (a worker
 process that died twice while running it, a lost Dask scheduler, a Dask worker killed
 repeatedly) is not recorded: :func:`execute` stops submitting, lets the runs in flight end,
-and :func:`pbvs_pin.sweep.driver.run_sweep` then raises
+and :func:`pbvs_pin.study.sweep.driver.run_sweep` then raises
 :class:`~pbvs_pin.exceptions.SweepIncomplete`, so that the sweep exits non-zero and a resume
 runs them again. A scheduler address is probed first (:func:`probe_scheduler`): an unknown
 scheme, an unreachable port, or a service that does not greet like a Dask scheduler within
@@ -39,8 +39,8 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from pbvs_pin.exceptions import PbvsError
-from pbvs_pin.sweep.runner import run_one
-from pbvs_pin.sweep.spec import RunTask
+from pbvs_pin.study.sweep.runner import run_one
+from pbvs_pin.study.sweep.spec import RunTask
 
 RETRIES_AFTER_CRASH = 1
 """How many times a run in flight when its worker process died is run again."""
@@ -84,7 +84,7 @@ def worker_environment() -> Iterator[None]:
                 os.environ[key] = old
 
 
-WORKER_PRELOAD = ["pbvs_pin.sweep", "pbvs_pin.sim.loop", "pbvs_pin.analysis"]
+WORKER_PRELOAD = ["pbvs_pin.study.sweep", "pbvs_pin.sim.loop", "pbvs_pin.study.analysis"]
 """Modules the fork server imports once, so that each worker starts with them loaded."""
 
 

@@ -1,7 +1,7 @@
 """The report's opening section: what the paper claims, what holds, what does not, and why.
 
 Every sentence is generated from the runs ``reproduce`` made: the reference runs' verdicts
-against their rules (:data:`pbvs_pin.claims.CLAIMS`), the comparison with the classic IBVS
+against their rules (:data:`pbvs_pin.study.claims.CLAIMS`), the comparison with the classic IBVS
 baseline, the compensation modes, and the passivity inequalities of each reference run's
 analysis. Where an inequality fails, the same experiments run once more with the paper's
 idealisations (exact sensing, no latency, a 1 kHz camera without noise; :data:`IDEALISED`)
@@ -53,7 +53,7 @@ def _count(flags: Sequence[bool]) -> str:
 
 def claims_paragraph(reference: list[dict[str, Any]]) -> list[str]:
     """One line per experiment: the verdict, the rule it is judged by, the deciding figure."""
-    from pbvs_pin.claims import judge, verdict_parts
+    from pbvs_pin.study.claims import judge, verdict_parts
 
     said = [verdict_parts(judge(s))[0] for s in reference]
     met = [word == "met" for word in said]
@@ -75,8 +75,8 @@ def _figures(s: dict[str, Any]) -> str:
 
     The rule without the clauses every experiment shares (target never lost, ...).
     """
-    from pbvs_pin.claims import CLAIMS, SOUND
-    from pbvs_pin.report import flags
+    from pbvs_pin.study.claims import CLAIMS, SOUND
+    from pbvs_pin.study.report import flags
 
     rule = "; ".join(c.text for c in CLAIMS[s["scenario"]].clauses if c not in SOUND)
     trouble = "; ".join(flags(s))
@@ -98,7 +98,7 @@ def comparisons_paragraph(
     The comparison runs are the compensation modes other than each experiment's own (the
     reference run's), the classic IBVS baseline and the MuJoCo plant's runs.
     """
-    from pbvs_pin.claims import claim_met
+    from pbvs_pin.study.claims import claim_met
 
     own = {s["scenario"]: s["compensation"] for s in reference}
     runs = [
@@ -129,8 +129,8 @@ def others_paragraph(others: list[dict[str, Any]]) -> list[str]:
 
     Each run not met names its failed clauses (or says it was not judged).
     """
-    from pbvs_pin.claims import failed as failed_clauses
-    from pbvs_pin.claims import judge
+    from pbvs_pin.study.claims import failed as failed_clauses
+    from pbvs_pin.study.claims import judge
 
     if not others:
         return []
@@ -233,7 +233,7 @@ def passivity_paragraph(
     """Which passivity inequalities hold; with the idealised runs, what a failing one needs.
 
     Args:
-        analyses: The reference runs' analyses (:func:`pbvs_pin.analysis.analyze_log`).
+        analyses: The reference runs' analyses (:func:`pbvs_pin.study.analysis.analyze_log`).
         idealised: ``"all"`` -> the analyses of the runs with :data:`IDEALISED`; each key of
             :data:`IDEALISATIONS` -> those of the runs without that idealisation. None: the
             idealised runs were not made.

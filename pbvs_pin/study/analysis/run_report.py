@@ -1,9 +1,9 @@
 """The analysis of a saved run, written to ``analysis.json`` and ``analysis.md`` (and the plots).
 
-:func:`analyze_run` loads a run's ``log.npz``, computes :func:`~pbvs_pin.analysis.analyze_log`
+:func:`analyze_run` loads a run's ``log.npz``, computes :func:`~pbvs_pin.study.analysis.analyze_log`
 and writes the report; :func:`report_markdown` sets both sides of every inequality ((9),
 (13)/(14), (31), (38), (39), (42)) in a markdown table; the plots come from
-:mod:`~pbvs_pin.analysis.bound_plots`.
+:mod:`~pbvs_pin.study.analysis.bound_plots`.
 """
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from pbvs_pin.analysis.analyze import analyze_log
-from pbvs_pin.analysis.bound_plots import plot_analysis
 from pbvs_pin.exceptions import LogError, OutputError, PbvsError
 from pbvs_pin.sim.log import CHANNELS, RunLog, write_json_atomically, write_text_atomically
+from pbvs_pin.study.analysis.analyze import analyze_log
+from pbvs_pin.study.analysis.bound_plots import plot_analysis
 from pbvs_pin.validation import as_path
 
 

@@ -3,7 +3,7 @@
 **Table.** The primary output is ``results.csv``, one row per run: ``run_id``, ``status``
 (``ok`` or ``failed``), ``reason`` (exception text, ``diverged: ...`` or ``timeout: ...``),
 ``seed``, the parameters (vectors as JSON), ``target_speed_m_s``, the analysis figures of
-:mod:`pbvs_pin.analysis` and the figures of :func:`pbvs_pin.sim.metrics.summarize` (lists
+:mod:`pbvs_pin.study.analysis` and the figures of :func:`pbvs_pin.sim.metrics.summarize` (lists
 flattened to ``name_0, name_1, ...``). CSV is primary because it can be appended one line at
 a time (each line is flushed and fsync'ed as its run finishes), so an interrupted sweep loses
 nothing; it needs no extra package and any tool reads it. Floats are written with ``repr``
@@ -36,8 +36,8 @@ from typing import Any
 import numpy as np
 
 from pbvs_pin.exceptions import OutputError, PbvsError, ScenarioError
-from pbvs_pin.sweep.runner import ANALYSIS_COLUMNS, TIMING_KEYS
-from pbvs_pin.sweep.spec import SweepSpec
+from pbvs_pin.study.sweep.runner import ANALYSIS_COLUMNS, TIMING_KEYS
+from pbvs_pin.study.sweep.spec import SweepSpec
 
 LEADING_COLUMNS = ("run_id", "status", "reason", "seed")
 """First columns of the table; the parameters follow, then ``target_speed_m_s``."""

@@ -37,7 +37,7 @@ that field is swept) is derived from the spec seed and the run id, also by SHA-2
 sample is drawn run by run in field order, so a larger ``n`` keeps the earlier runs; a repeated
 draw is one run.
 
-The run parameters of ``[grid]`` and ``[random]`` are drawn by :mod:`pbvs_pin.sweep.sampling`.
+The run parameters of ``[grid]`` and ``[random]`` are drawn by :mod:`pbvs_pin.study.sweep.sampling`.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ from typing import Any
 
 from pbvs_pin.exceptions import ScenarioError
 from pbvs_pin.sim.scenario import Scenario, load_scenario
-from pbvs_pin.sweep.sampling import check_field, flatten, grid_runs, random_runs
+from pbvs_pin.study.sweep.sampling import check_field, flatten, grid_runs, random_runs
 from pbvs_pin.validation import as_path, read_toml
 
 SWEEP_DEFAULTS: dict[str, Any] = {

@@ -1,11 +1,11 @@
 """The robustness map: each camera fault raised alone until the loop breaks.
 
-The map is read from the shipped spec ``pbvs_pin/sweep/specs/robustness.toml``: a base scenario, the
-compensation (``[map.compensation]``: prediction along eq. (3), a hold through lost frames,
-feature smoothing), the values without it (``[map.without]``: the paper's estimator) and one
-``[[fault]]`` block per fault with its field and sizes. Each size is run twice, without and with
-the compensation. A run is *broken* when the max ``|xi_true - xi_d|`` over the last ``window_s``
-seconds is above ``threshold_px``, or the target is lost in that window.
+The map is read from the shipped spec ``pbvs_pin/study/sweep/specs/robustness.toml``: a base
+scenario, the compensation (``[map.compensation]``: prediction along eq. (3), a hold through lost
+frames, feature smoothing), the values without it (``[map.without]``: the paper's estimator) and
+one ``[[fault]]`` block per fault with its field and sizes. Each size is run twice, without and
+with the compensation. A run is *broken* when the max ``|xi_true - xi_d|`` over the last
+``window_s`` seconds is above ``threshold_px``, or the target is lost in that window.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import numpy as np
 
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
-from pbvs_pin.sweep.spec import sweep_dir
+from pbvs_pin.study.sweep.spec import sweep_dir
 
 VARIANTS = ("without", "with")
 """The two variants of every size: without and with the compensation of the spec."""
@@ -30,7 +30,7 @@ def map_path(name_or_path: str | Path) -> Path | None:
     """The robustness spec a ``pbvs-pin sweep`` argument names (shipped name or path).
 
     None when it names no readable TOML file with a ``[map]`` table (an ordinary sweep spec,
-    whose errors :func:`pbvs_pin.sweep.spec.load_sweep` then reports).
+    whose errors :func:`pbvs_pin.study.sweep.spec.load_sweep` then reports).
     """
     try:
         shipped = sweep_dir() / f"{name_or_path}.toml"
@@ -209,8 +209,9 @@ def map_section(rows: list[dict[str, Any]], figure: str = "robustness.png") -> s
         "",
         "## Robustness map: each camera fault alone, Experiment 1",
         "",
-        "Each fault raised alone (sizes in `pbvs_pin/sweep/specs/robustness.toml`), without and "
-        "with the estimator's fault handling (prediction along eq. (3), 1.5 s hold, smoothing 0.2, "
+        "Each fault raised alone (sizes in `pbvs_pin/study/sweep/specs/robustness.toml`), "
+        "without and with the estimator's fault handling (prediction along eq. (3), 1.5 s hold, "
+        "smoothing 0.2, "
         "noise-adaptive velocity filter; "
         "not the dynamic compensation of eq. (20)). Broken: max "
         "|error| over the last 5 s above 10 px, or the target lost then.",

@@ -1,6 +1,6 @@
 """One run of a scenario: simulate it, write its log, summary, figures, replay and bag.
 
-The paper's reproduction over the robots, and its report, is :mod:`pbvs_pin.reproduction`.
+The paper's reproduction over the robots, and its report, is :mod:`pbvs_pin.study.reproduction`.
 """
 
 from __future__ import annotations
@@ -12,7 +12,6 @@ from pathlib import Path
 from typing import Any
 
 from pbvs_pin.catalogue import ROBOT_NAMES
-from pbvs_pin.claims import judge
 from pbvs_pin.exceptions import (
     GainError,
     OutputError,
@@ -28,7 +27,6 @@ from pbvs_pin.interrupts import (
     stage,
     with_interrupt_point,
 )
-from pbvs_pin.report import CLAIMS
 from pbvs_pin.sim.log import (
     RunLog,
     check_writable,
@@ -37,10 +35,12 @@ from pbvs_pin.sim.log import (
 from pbvs_pin.sim.loop import Snapshot, simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import Scenario, load_scenario, parse_scenario
+from pbvs_pin.study.claims import judge
+from pbvs_pin.study.report import CLAIMS
 from pbvs_pin.validation import as_path, read_toml
 
 PAPER_CLAIMS = {name: claim.text for name, claim in CLAIMS.items()}
-"""The paper's claim for each experiment (§5); the rules are in :data:`pbvs_pin.claims.CLAIMS`."""
+"""The paper's claim for each experiment (§5); the rules: :data:`pbvs_pin.study.claims.CLAIMS`."""
 
 
 def run_scenario(
@@ -59,7 +59,7 @@ def run_scenario(
     The outputs are checked writable before the simulation starts; the log and summary are
     written atomically (whole or not at all). The summary holds the run's figures
     (:func:`pbvs_pin.sim.metrics.summarize`) and its verdict by its experiment's rule
-    (:func:`pbvs_pin.claims.judge`: ``met``, ``not_judged``, ``rule``, ``clauses``).
+    (:func:`pbvs_pin.study.claims.judge`: ``met``, ``not_judged``, ``rule``, ``clauses``).
 
     Args:
         scenario: A shipped name, a TOML path, or a loaded scenario.
