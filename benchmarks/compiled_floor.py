@@ -45,11 +45,11 @@ import pinocchio as pin
 from control_step import control_step_calls, control_step_ratio, mean_time, plant_step_calls
 from numba import njit
 
-from pbvs_pin.camera import project_points
 from pbvs_pin.control.step import FusedControlStep
 from pbvs_pin.control.tracking import TargetTracker
-from pbvs_pin.features import ImageMeasurement
-from pbvs_pin.servo import packed_servo_step
+from pbvs_pin.model.camera import project_points
+from pbvs_pin.model.servo import packed_servo_step
+from pbvs_pin.perception.features import ImageMeasurement
 from pbvs_pin.sim.log import RunRecorder
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
@@ -212,9 +212,9 @@ def pinocchio_times(robot_name: str, module, loops) -> dict[str, tuple[float, fl
 def kernel_arithmetic() -> dict[str, float]:
     """Time [s] of one call of each per-millisecond kernel from compiled code, reference robot.
 
-    The servo step (:func:`~pbvs_pin.servo.packed_servo_step`) on a moving plant, the sensors'
+    The servo step (:func:`~pbvs_pin.model.servo.packed_servo_step`) on a moving plant, the sensors'
     reading (:func:`~pbvs_pin.sim.sensing.sensing_step`) and the projection of the predicted
-    frame (:func:`~pbvs_pin.camera.project_points`), on the arguments the loop gives them.
+    frame (:func:`~pbvs_pin.model.camera.project_points`), on the arguments the loop gives them.
     """
     setup = build(load_scenario("experiment1"))
     plant = setup.plant

@@ -30,10 +30,10 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from pbvs_pin.camera_frame import CameraFrame
 from pbvs_pin.control.step import FusedControlStep, fused_control_step
-from pbvs_pin.features import ImageMeasurement
-from pbvs_pin.plant import Plant
+from pbvs_pin.perception.camera_frame import CameraFrame
+from pbvs_pin.perception.features import ImageMeasurement
+from pbvs_pin.plant.pinocchio_plant import Plant
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.sensing import Sensing
@@ -83,7 +83,7 @@ def control_step_calls(
 def plant_step_calls(
     model: pin.Model, data: pin.Data, q: np.ndarray, v_pin: np.ndarray, displacement: np.ndarray
 ) -> None:
-    """The Pinocchio calls of :meth:`pbvs_pin.plant.Plant.step`, made from Python."""
+    """The Pinocchio calls of :meth:`pbvs_pin.plant.pinocchio_plant.Plant.step`, from Python."""
     pin.crba(model, data, q)
     pin.nonLinearEffects(model, data, q, v_pin)
     pin.computeGeneralizedGravity(model, data, q)

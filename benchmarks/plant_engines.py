@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 from control_step import mean_time
 
-from pbvs_pin.catalogue import REFERENCE_ROBOT
+from pbvs_pin.bringup.catalogue import REFERENCE_ROBOT
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.setup import build

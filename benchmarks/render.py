@@ -20,7 +20,7 @@ import time
 
 from control_step import mean_time
 
-from pbvs_pin.detection import ColourDetector
+from pbvs_pin.perception.detection import ColourDetector
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.render import SceneRenderer

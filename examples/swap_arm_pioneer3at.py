@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 import pbvs_pin
-from pbvs_pin.shipped import shipped_urdf
+from pbvs_pin.model.shipped import shipped_urdf
 
 MOUNT = (0.10, 0.0, 0.27, 0.0, 0.0, 0.0)  # arm root in the platform's root link [m, rad]
 SHORT_RUN = 3.0  # simulated time of a --no-viz run [s]

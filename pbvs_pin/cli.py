@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pbvs_pin import __version__
-from pbvs_pin.catalogue import OTHER_ROBOTS, ROBOT_NAMES
+from pbvs_pin.bringup.catalogue import OTHER_ROBOTS, ROBOT_NAMES
 from pbvs_pin.exceptions import (
     GainError,
     PbvsError,
@@ -39,16 +39,16 @@ from pbvs_pin.interrupts import (
     loaded,
     stage,
 )
+from pbvs_pin.model.shipped import scenario_file
 from pbvs_pin.outputs import Output, check_outputs, output_option, replace_run_folder
 from pbvs_pin.ros.commands import add_arguments as ros_arguments
-from pbvs_pin.shipped import scenario_file
 from pbvs_pin.study.report import ENGINE_ROBOTS
 from pbvs_pin.study.zoo import add_arguments as zoo_arguments
 from pbvs_pin.study.zoo import command as zoo_command
 from pbvs_pin.validation import positive_number
 
 if TYPE_CHECKING:
-    from pbvs_pin.robot import MobileManipulator
+    from pbvs_pin.model.robot import MobileManipulator
     from pbvs_pin.sim.scenario import Scenario
 
 
@@ -64,7 +64,7 @@ def load_robot_argument(argument: str) -> MobileManipulator:
         ScenarioError: If the TOML file is missing, malformed, has no ``[robot]`` table, or
             its robot cannot be built (naming the dotted field).
     """
-    from pbvs_pin.catalogue import build_robot
+    from pbvs_pin.bringup.catalogue import build_robot
 
     if Path(argument).suffix.lower() != ".toml":
         return build_robot(argument)
@@ -77,7 +77,7 @@ def load_robot_argument(argument: str) -> MobileManipulator:
 def _info(args: argparse.Namespace) -> None:
     """Print a robot's dof, joints, limits, camera and manipulability."""
     robot = load_robot_argument(args.robot)
-    from pbvs_pin.manipulability import arm_manipulability, whole_body_manipulability
+    from pbvs_pin.model.manipulability import arm_manipulability, whole_body_manipulability
 
     q = robot.home()
     lower, upper = robot.arm_position_limits()
@@ -121,8 +121,8 @@ def _list(args: argparse.Namespace) -> None:
         print("scenario keys (pbvs-pin run SCENARIO --set KEY=VALUE; VALUE is read as TOML):")
         print("\n".join(f"  {line}" for line in key_lines()))
         return
-    from pbvs_pin.catalogue import example_robot_data_arms
-    from pbvs_pin.shipped import shipped_scenarios
+    from pbvs_pin.bringup.catalogue import example_robot_data_arms
+    from pbvs_pin.model.shipped import shipped_scenarios
     from pbvs_pin.study.sweep.spec import sweep_dir
 
     sections = (

@@ -9,7 +9,8 @@ same class). At every control step it takes what a robot has:
 - the encoders and odometry as a Pinocchio configuration ``q`` (the platform's pose is the
   drive-axle midpoint on the floor, ``drive_footprint``, in the odometry's fixed frame) and
   the actuated velocities ``v = [u [m/s], omega [rad/s], arm joint rates]``;
-- a camera frame when one arrived (:class:`~pbvs_pin.camera_frame.CameraFrame`: its capture
+- a camera frame when one arrived (:class:`~pbvs_pin.perception.camera_frame.CameraFrame`: its
+capture
   time, and the target's image points and depths, or "not visible"); None when none arrived;
 - a laser reading ``(d [m], alpha [rad])`` of the nearest obstacle when a scan arrived.
 
@@ -53,8 +54,6 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from pbvs_pin.camera import MIN_DEPTH
-from pbvs_pin.camera_frame import CameraFrame
 from pbvs_pin.compile_cache import announce_compiles
 from pbvs_pin.control import bounds, layout
 from pbvs_pin.control.balanced import joint_room
@@ -73,11 +72,13 @@ from pbvs_pin.control.settings import (
 from pbvs_pin.control.step import FusedControlStep
 from pbvs_pin.control.tracking import TargetTracker
 from pbvs_pin.control.upright import upright_row
-from pbvs_pin.estimation import velocity_filter
 from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
-from pbvs_pin.features import ImageMeasurement, TwoSphereFeatures
-from pbvs_pin.joint_angles import arm_angles
-from pbvs_pin.robot import UNIT_TOLERANCE, MobileManipulator
+from pbvs_pin.model.camera import MIN_DEPTH
+from pbvs_pin.model.joint_angles import arm_angles
+from pbvs_pin.model.robot import UNIT_TOLERANCE, MobileManipulator
+from pbvs_pin.perception.camera_frame import CameraFrame
+from pbvs_pin.perception.estimation import velocity_filter
+from pbvs_pin.perception.features import ImageMeasurement, TwoSphereFeatures
 from pbvs_pin.validation import as_array, as_instance, as_number, as_numbers
 
 JUMP_SLACK = (0.05, 0.1)

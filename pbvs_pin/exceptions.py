@@ -197,7 +197,7 @@ class HomeNotFound(PbvsError):
             source: File or name the robot was built from.
             forward_error_deg: Smallest angle between the optical axis and the platform's x
                 axis that was found [deg].
-            criteria: The :class:`pbvs_pin.home.HomeCriteria` in force.
+            criteria: The :class:`pbvs_pin.bringup.home.HomeCriteria` in force.
         """
         self.source = source
         self.forward_error_deg = forward_error_deg

@@ -1,8 +1,9 @@
 """Small dense linear algebra for the compiled kernels (Numba).
 
 At the control step's sizes (``r <= 8`` features, ``n <= 12`` actuated velocities) plain loops
-beat a BLAS/LAPACK call and its temporaries. Every kernel of the equations (:mod:`pbvs_pin.camera`,
-:mod:`pbvs_pin.features`, :mod:`pbvs_pin.dynamics`, :mod:`pbvs_pin.control`) uses these.
+beat a BLAS/LAPACK call and its temporaries. Every kernel of the equations
+(:mod:`pbvs_pin.model.camera`, :mod:`pbvs_pin.perception.features`,
+:mod:`pbvs_pin.model.dynamics`, :mod:`pbvs_pin.control`) uses these.
 """
 
 from __future__ import annotations
@@ -112,6 +113,6 @@ def cut(buffer: np.ndarray, start: int, count: int) -> tuple[np.ndarray, int]:
     """The ``count`` entries of ``buffer`` from ``start``, and the offset after them.
 
     Names the slots of a packed buffer in turn (:mod:`pbvs_pin.control.layout`,
-    :func:`pbvs_pin.servo.servo_constants`).
+    :func:`pbvs_pin.model.servo.servo_constants`).
     """
     return buffer[start : start + count], start + count

@@ -16,14 +16,14 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from pbvs_pin import estimation
-from pbvs_pin.estimation import (
+from pbvs_pin.exceptions import GainError, ScenarioError
+from pbvs_pin.perception import estimation
+from pbvs_pin.perception.estimation import (
     AdaptiveAlphaBetaFilter,
     AlphaBetaFilter,
     innovation_spread,
     velocity_filter,
 )
-from pbvs_pin.exceptions import GainError, ScenarioError
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario

@@ -8,7 +8,7 @@ no joint past its limits, the image upright), on figures computed here from the 
 import numpy as np
 import pytest
 
-from pbvs_pin.catalogue import ROBOT_NAMES
+from pbvs_pin.bringup.catalogue import ROBOT_NAMES
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 

@@ -1,4 +1,5 @@
-"""The package's shape: one concept per module, no module over 600 lines, no import cycles.
+"""The package's shape: one concept per module, no module over 600 lines, no import cycles,
+imports that run one way down its floors.
 
 The import graph is read from the source with :mod:`ast` (module-level and function-level
 imports, ``TYPE_CHECKING`` blocks included), so a cycle hidden behind a lazy import counts.
@@ -75,3 +76,62 @@ def test_the_cycle_check_finds_a_cycle(tmp_path):
 def test_no_module_is_over_600_lines(module):
     lines = len(MODULES[module].read_text().splitlines())
     assert lines <= MAX_LINES, f"{module}: {lines} lines"
+
+
+LAYERS = (
+    ("exceptions",),
+    ("validation", "linalg", "toml_keys", "compile_cache", "interrupts", "outputs"),
+    ("model",),
+    ("perception",),
+    ("control",),
+    ("controller",),
+    ("plant",),
+    ("bringup",),
+    ("sim",),
+    ("viz",),
+    ("ros",),
+    ("study",),
+    ("cli",),
+)
+"""The package's parts from the ground up, as the paper's Fig. 3 reads: the model, perception,
+control and the controller, the plants, a robot brought up at its home, the simulation, then
+the views, the ROS 2 bridge, the study and the command line. A part imports only parts on its
+own floor or below."""
+
+
+def _part(module: str) -> str:
+    """The part of ``pbvs_pin`` a module belongs to: its sub-package or its top-level module."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "pbvs_pin"
+
+
+def _upward_imports(graph: dict[str, set[str]]) -> list[str]:
+    """Every import from a part to a part on a higher floor, as ``module -> module``."""
+    floor = {part: level for level, parts in enumerate(LAYERS) for part in parts}
+    # the package's __init__ imports only compile_cache and interrupts; its public names load
+    # lazily, by name, when first used
+    floor["pbvs_pin"] = 1
+    return [
+        f"{module} -> {target}"
+        for module, targets in sorted(graph.items())
+        for target in sorted(targets)
+        if floor[_part(target)] > floor[_part(module)]
+    ]
+
+
+def test_every_part_has_a_floor():
+    parts = {_part(module) for module in MODULES} - {"pbvs_pin"}
+    placed = {part for floor in LAYERS for part in floor}
+    assert parts <= placed, f"parts with no floor in LAYERS: {sorted(parts - placed)}"
+
+
+def test_imports_run_one_way_down():
+    graph = {module: _imports(module, path) for module, path in MODULES.items()}
+    upward = _upward_imports(graph)
+    assert not upward, "imports that run up a floor:\n" + "\n".join(upward)
+
+
+def test_the_floor_check_finds_an_upward_import():
+    """The check itself can fail: the model importing the simulator runs up."""
+    graph = {"pbvs_pin.model.robot": {"pbvs_pin.sim.loop"}, "pbvs_pin.sim.loop": set()}
+    assert _upward_imports(graph) == ["pbvs_pin.model.robot -> pbvs_pin.sim.loop"]

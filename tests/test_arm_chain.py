@@ -17,16 +17,16 @@ import pytest
 from conftest import REPO_ROOT
 
 from pbvs_pin import MobileManipulator, UrdfError
-from pbvs_pin.catalogue import PIONEER_MOUNT
-from pbvs_pin.exceptions import PbvsWarning, ScenarioError
-from pbvs_pin.home import compute_home
-from pbvs_pin.placement import (
+from pbvs_pin.bringup.catalogue import PIONEER_MOUNT
+from pbvs_pin.bringup.home import compute_home
+from pbvs_pin.bringup.placement import (
     FLOOR_TOLERANCE,
     Placement,
     placement_problems,
     warn_placement,
     world_boxes,
 )
+from pbvs_pin.exceptions import PbvsWarning, ScenarioError
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.sections import RobotSection

@@ -25,15 +25,15 @@ from pbvs_pin import (
     TwoSphereFeatures,
     rigid_body_terms,
 )
-from pbvs_pin.detection import register_detector
-from pbvs_pin.estimation import AlphaBetaFilter
+from pbvs_pin.bringup.home import assess_home, compute_home
 from pbvs_pin.exceptions import WrongType
-from pbvs_pin.home import assess_home, compute_home
-from pbvs_pin.manipulability import (
+from pbvs_pin.model.manipulability import (
     arm_manipulability,
     max_manipulability_posture,
     whole_body_manipulability,
 )
+from pbvs_pin.perception.detection import register_detector
+from pbvs_pin.perception.estimation import AlphaBetaFilter
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.targets import Still, TwoSphereTarget
 from pbvs_pin.validation import as_se3

@@ -11,7 +11,7 @@ import pytest
 from conftest import URDF_DIR, urdf_wheels
 
 from pbvs_pin import DifferentialDrive, FixedBase, GainError, Omnidirectional
-from pbvs_pin.base import skid_steer_factor
+from pbvs_pin.model.base import skid_steer_factor
 
 
 def unicycle_arc(x0, y0, th0, u, w, t):

@@ -10,8 +10,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.exceptions import ScenarioError
+from pbvs_pin.model.camera import CameraIntrinsics
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.vision import CameraFaults, CameraSensor
 

@@ -19,7 +19,7 @@ import pytest
 from conftest import REPO_ROOT
 
 import pbvs_pin
-from pbvs_pin.catalogue import OTHER_ROBOTS
+from pbvs_pin.bringup.catalogue import OTHER_ROBOTS
 from pbvs_pin.cli import build_parser, main
 from pbvs_pin.exceptions import OutputError
 from pbvs_pin.sim.log import RunLog

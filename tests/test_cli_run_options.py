@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from conftest import URDF_DIR
 
-from pbvs_pin.catalogue import chain_joints
+from pbvs_pin.bringup.catalogue import chain_joints
 from pbvs_pin.cli import main
 from pbvs_pin.interrupts import (
     held_interrupts,

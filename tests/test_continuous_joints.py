@@ -15,11 +15,11 @@ from conftest import DATA_DIR
 from simhelpers import controller_with_first_frame
 
 from pbvs_pin import MobileManipulator
-from pbvs_pin.catalogue import OPTICAL_FROM_BODY, PIONEER_MOUNT
+from pbvs_pin.bringup.catalogue import OPTICAL_FROM_BODY, PIONEER_MOUNT
+from pbvs_pin.bringup.home import assess_home, compute_home
 from pbvs_pin.control.secondary import ArmPosture, SecondaryInput, posture_term
-from pbvs_pin.home import assess_home, compute_home
-from pbvs_pin.joint_angles import arm_difference
-from pbvs_pin.manipulability import max_manipulability_posture
+from pbvs_pin.model.joint_angles import arm_difference
+from pbvs_pin.model.manipulability import max_manipulability_posture
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import posture_error, summarize
 from pbvs_pin.sim.scenario import load_scenario

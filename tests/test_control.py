@@ -26,8 +26,8 @@ from pbvs_pin.control.secondary import (
     secondary_vector,
 )
 from pbvs_pin.exceptions import GainError, ShapeError
-from pbvs_pin.plant import Plant
-from pbvs_pin.servo import ServoModel
+from pbvs_pin.model.servo import ServoModel
+from pbvs_pin.plant.pinocchio_plant import Plant
 
 SCALE = 150.0
 """Pixels per controller unit used throughout (the package default)."""

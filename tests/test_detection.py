@@ -8,8 +8,9 @@ import cv2
 import numpy as np
 import pytest
 
-from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.detection import (
+from pbvs_pin.exceptions import GainError, ShapeError
+from pbvs_pin.model.camera import CameraIntrinsics
+from pbvs_pin.perception.detection import (
     SPHERE_HUES,
     ColourDetector,
     Detector,
@@ -17,7 +18,6 @@ from pbvs_pin.detection import (
     detector_names,
     register_detector,
 )
-from pbvs_pin.exceptions import GainError, ShapeError
 
 CAMERA = CameraIntrinsics(600.0, 628, 582)
 SHIFT = 8  # cv2.circle's fractional bits: centres and radii at 1/256 px

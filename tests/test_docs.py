@@ -75,7 +75,7 @@ def test_the_api_reference_documents_the_public_api(site):
         "pbvs_pin.controller.Controller.step",
         "pbvs_pin.sim.loop.simulate",
         "pbvs_pin.sim.scenario.load_scenario",
-        "pbvs_pin.robot.MobileManipulator",
+        "pbvs_pin.model.robot.MobileManipulator",
     ):
         assert f'id="{name}"' in raw, name
     text = page_text(site, "api.html")

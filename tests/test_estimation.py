@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from pbvs_pin.estimation import AlphaBetaFilter
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.perception.estimation import AlphaBetaFilter
 
 PERIOD = 1.0 / 30.0
 """The paper's camera rate [s]."""

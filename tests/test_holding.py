@@ -16,9 +16,9 @@ import pinocchio as pin
 import pytest
 
 from pbvs_pin import MobileManipulator
+from pbvs_pin.bringup.holding import holding_rows, overloaded_joints, warn_overloaded
+from pbvs_pin.bringup.home import HomeCriteria, compute_home
 from pbvs_pin.exceptions import PbvsWarning
-from pbvs_pin.holding import holding_rows, overloaded_joints, warn_overloaded
-from pbvs_pin.home import HomeCriteria, compute_home
 from pbvs_pin.sim.scenario import load_scenario
 
 GRAVITY = 9.81  # [m/s^2], Pinocchio's default model.gravity

@@ -18,11 +18,11 @@ import pinocchio as pin
 import pytest
 from docs_figures import stated
 
-from pbvs_pin.base import DifferentialDrive, FixedBase, Omnidirectional
 from pbvs_pin.control.settings import ControllerSettings, _reference_gains, kinematic_law
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.mujoco_plant import MujocoPlant
-from pbvs_pin.servo import ServoModel
+from pbvs_pin.model.base import DifferentialDrive, FixedBase, Omnidirectional
+from pbvs_pin.model.servo import ServoModel
+from pbvs_pin.plant.mujoco_plant import MujocoPlant
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario

@@ -1,4 +1,4 @@
-"""The computed home posture (pbvs_pin.home) and the shipped homes (catalogue.py).
+"""The computed home posture (pbvs_pin.bringup.home) and the shipped homes (catalogue.py).
 
 Each home is checked against the criteria with the test's own geometry: the optical axis
 ``R[:, 2]`` against the platform's x axis, the image's down axis ``R[:, 1]`` against the
@@ -15,9 +15,9 @@ import pytest
 from conftest import DATA_DIR
 
 import pbvs_pin
-from pbvs_pin.catalogue import OPTICAL_FROM_BODY, RECIPES
+from pbvs_pin.bringup.catalogue import OPTICAL_FROM_BODY, RECIPES
+from pbvs_pin.bringup.home import HomeCriteria, assess_home, compute_home
 from pbvs_pin.exceptions import GainError, HomeNotFound
-from pbvs_pin.home import HomeCriteria, assess_home, compute_home
 
 FORWARD_DEG = 0.05  # largest angle between the optical axis and the platform's x axis
 UPRIGHT_DEG = 0.05  # largest angle between the image's down axis (camera y) and world -z

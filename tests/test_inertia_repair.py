@@ -14,8 +14,8 @@ import pytest
 from conftest import URDF_DIR, rot_x, rot_z
 
 from pbvs_pin import MobileManipulator, UrdfError
-from pbvs_pin.assembly import load_urdf
 from pbvs_pin.exceptions import ScenarioError
+from pbvs_pin.model.assembly import load_urdf
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 

@@ -17,7 +17,7 @@ import json
 import numpy as np
 import pytest
 
-from pbvs_pin.detection import ColourDetector, register_detector
+from pbvs_pin.perception.detection import ColourDetector, register_detector
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import Scenario, load_scenario
 from pbvs_pin.toml_keys import keys_of

@@ -17,8 +17,8 @@ import pytest
 import yourdfpy
 
 from pbvs_pin import MobileManipulator, UrdfError
-from pbvs_pin.link_inertia import fill_missing_inertias
-from pbvs_pin.servo import ServoModel
+from pbvs_pin.model.link_inertia import fill_missing_inertias
+from pbvs_pin.model.servo import ServoModel
 
 DENSITY = 1000.0  # [kg/m^3]
 BOX = (0.1, 0.2, 0.3)  # [m]
@@ -113,7 +113,7 @@ def test_an_arm_without_inertias_is_refused_naming_the_key_then_runs_with_it():
 def test_the_zoo_page_states_the_iiwa_mass_its_file_gets():
     from conftest import REPO_ROOT
 
-    from pbvs_pin.assembly import load_urdf
+    from pbvs_pin.model.assembly import load_urdf
 
     source = load_urdf(IIWA, geometry_density=DENSITY)
     total = sum(link.inertial.mass for link in source.robot.links if link.inertial is not None)

@@ -19,9 +19,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pbvs_pin.catalogue import build_robot
-from pbvs_pin.home import HomeCriteria
-from pbvs_pin.mujoco_support import centre_of_mass_margins, support_polygon
+from pbvs_pin.bringup.catalogue import build_robot
+from pbvs_pin.bringup.home import HomeCriteria
+from pbvs_pin.plant.mujoco_support import centre_of_mass_margins, support_polygon
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario

@@ -9,9 +9,9 @@ import pytest
 
 from pbvs_pin import MobileManipulator, load_robot
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.mujoco_plant import MujocoPlant
-from pbvs_pin.plant import Plant
-from pbvs_pin.servo import REVOLUTE_TIME_CONSTANT, ServoModel
+from pbvs_pin.model.servo import REVOLUTE_TIME_CONSTANT, ServoModel
+from pbvs_pin.plant.mujoco_plant import MujocoPlant
+from pbvs_pin.plant.pinocchio_plant import Plant
 
 TWO_WHEELS = Path(__file__).parent / "data" / "two_wheel_platform.urdf"
 

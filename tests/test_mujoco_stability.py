@@ -17,12 +17,12 @@ import pinocchio as pin
 import pytest
 
 from pbvs_pin import load_robot
+from pbvs_pin.bringup.home import HomeCriteria, compute_home
 from pbvs_pin.exceptions import PbvsWarning
-from pbvs_pin.home import HomeCriteria, compute_home
-from pbvs_pin.mujoco_plant import MujocoPlant
-from pbvs_pin.mujoco_stability import convex_hull, polygon_margin, support_margin
-from pbvs_pin.mujoco_support import centre_of_mass_margins, support_polygon
-from pbvs_pin.servo import ServoModel
+from pbvs_pin.model.servo import ServoModel
+from pbvs_pin.plant.mujoco_plant import MujocoPlant
+from pbvs_pin.plant.mujoco_stability import convex_hull, polygon_margin, support_margin
+from pbvs_pin.plant.mujoco_support import centre_of_mass_margins, support_polygon
 from pbvs_pin.sim.sections import RobotSection
 from pbvs_pin.study.zoo import load_zoo
 

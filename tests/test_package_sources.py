@@ -14,7 +14,7 @@ import pytest
 from conftest import URDF_DIR
 
 from pbvs_pin import MobileManipulator, UrdfError
-from pbvs_pin.assembly import load_urdf
+from pbvs_pin.model.assembly import load_urdf
 
 STRETCH = "package://stretch_urdf/RE1V0/stretch_description_RE1V0_tool_none.urdf"
 IIWA = "package://rtbdata/xacro/kuka_description/kuka_lbr_iiwa/urdf/lbr_iiwa_14_r820.urdf"

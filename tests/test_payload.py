@@ -13,10 +13,10 @@ from conftest import random_configuration
 
 from pbvs_pin import load_robot
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.mujoco_plant import MujocoPlant
-from pbvs_pin.plant import Plant
-from pbvs_pin.robot import PAYLOAD_RADIUS
-from pbvs_pin.servo import ServoModel
+from pbvs_pin.model.robot import PAYLOAD_RADIUS
+from pbvs_pin.model.servo import ServoModel
+from pbvs_pin.plant.mujoco_plant import MujocoPlant
+from pbvs_pin.plant.pinocchio_plant import Plant
 
 PAYLOAD_KG = 0.5
 

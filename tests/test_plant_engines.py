@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pbvs_pin.mujoco_plant import MujocoPlant
-from pbvs_pin.plant import Plant
+from pbvs_pin.plant.mujoco_plant import MujocoPlant
+from pbvs_pin.plant.pinocchio_plant import Plant
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario

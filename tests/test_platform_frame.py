@@ -17,12 +17,12 @@ import numpy as np
 import pytest
 from conftest import REPO_ROOT
 
-from pbvs_pin.assembly import load_urdf
-from pbvs_pin.base import Omnidirectional
-from pbvs_pin.catalogue import PIONEER_MOUNT, RECIPES
+from pbvs_pin.bringup.catalogue import PIONEER_MOUNT, RECIPES
 from pbvs_pin.exceptions import BaseJointsError, GainError, PbvsWarning, ScenarioError
-from pbvs_pin.platform_frame import PlatformFrame, fix_base_joints, warn_wheel_axles
-from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.model.assembly import load_urdf
+from pbvs_pin.model.base import Omnidirectional
+from pbvs_pin.model.platform_frame import PlatformFrame, fix_base_joints, warn_wheel_axles
+from pbvs_pin.model.robot import MobileManipulator
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.sections import RobotSection

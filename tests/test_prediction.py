@@ -160,7 +160,7 @@ def test_with_a_hold_a_frame_older_than_it_is_not_used(hold):
 def _tracker(**keys):
     from pbvs_pin import load_robot
     from pbvs_pin.control.tracking import TargetTracker
-    from pbvs_pin.estimation import AlphaBetaFilter
+    from pbvs_pin.perception.estimation import AlphaBetaFilter
 
     robot = load_robot("pioneer_cyton")
     values = {"predict": False, "hold": 0.0, "smoothing": 1.0, **keys}
@@ -168,7 +168,7 @@ def _tracker(**keys):
 
 
 def _frame(points, depths):
-    from pbvs_pin.features import ImageMeasurement
+    from pbvs_pin.perception.features import ImageMeasurement
 
     return ImageMeasurement(np.array(points, dtype=float), np.array(depths, dtype=float))
 

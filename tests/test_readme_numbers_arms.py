@@ -12,7 +12,7 @@ from docs_figures import (
 )
 
 from pbvs_pin import load_robot
-from pbvs_pin.catalogue import ROBOT_NAMES
+from pbvs_pin.bringup.catalogue import ROBOT_NAMES
 
 
 def test_the_image_rolls_without_the_upright_constraint():

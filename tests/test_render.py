@@ -11,10 +11,10 @@ import pinocchio as pin
 import pytest
 from conftest import REPO_ROOT
 
-from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.catalogue import load_robot
-from pbvs_pin.detection import ColourDetector
+from pbvs_pin.bringup.catalogue import load_robot
 from pbvs_pin.exceptions import PbvsWarning, ScenarioError
+from pbvs_pin.model.camera import CameraIntrinsics
+from pbvs_pin.perception.detection import ColourDetector
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import detection_summary, summarize
 from pbvs_pin.sim.obstacles import BoxObstacle

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 from conftest import DATA_DIR, REPO_ROOT
 
-from pbvs_pin.base import Omnidirectional
-from pbvs_pin.catalogue import PIONEER_MOUNT, RECIPES, build_robot
+from pbvs_pin.bringup.catalogue import PIONEER_MOUNT, RECIPES, build_robot
 from pbvs_pin.cli import main
 from pbvs_pin.exceptions import PbvsWarning, ScenarioError
+from pbvs_pin.model.base import Omnidirectional
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.sections import RobotSection

@@ -365,7 +365,7 @@ def test_message_conventions():
 
 def test_the_simulated_robot_stops_when_commands_stop_coming():
     """A controller killed with SIGKILL sends nothing: past the timeout the robot gets zero."""
-    from pbvs_pin.ros.sim import applied_command
+    from pbvs_pin.ros.sim_robot import applied_command
 
     base, arm = (1.0, np.array([0.2, -0.1])), (1.0, np.array([0.3, 0.0, -0.3]))
     assert applied_command(1.05, base, arm, 0.1, 2, 5).tolist() == [0.2, -0.1, 0.3, 0.0, -0.3]

@@ -160,7 +160,7 @@ def test_each_message_kind_reads_back_the_same_in_ros_and_rosbags():
     from rclpy.serialization import deserialize_message, serialize_message
     from rosgraph_msgs.msg import Clock
 
-    from pbvs_pin.camera import CameraIntrinsics
+    from pbvs_pin.model.camera import CameraIntrinsics
     from pbvs_pin.ros import messages
     from pbvs_pin.ros.bag import message_type, store_message
 

@@ -11,8 +11,8 @@ import pinocchio as pin
 import pytest
 from conftest import rot_z
 
-from pbvs_pin.base import DifferentialDrive
-from pbvs_pin.odometry import WheelOdometry
+from pbvs_pin.model.base import DifferentialDrive
+from pbvs_pin.plant.odometry import WheelOdometry
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.obstacles import BoxObstacle, Laser
 from pbvs_pin.sim.scenario import load_scenario

@@ -18,14 +18,14 @@ import pytest
 from conftest import DATA_DIR, URDF_DIR, random_configuration
 
 from pbvs_pin.exceptions import GainError, UrdfError
-from pbvs_pin.plant import Plant
-from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.servo import (
+from pbvs_pin.model.robot import MobileManipulator
+from pbvs_pin.model.servo import (
     PLATFORM_TIME_CONSTANTS,
     PRISMATIC_TIME_CONSTANT,
     REVOLUTE_TIME_CONSTANT,
     ServoModel,
 )
+from pbvs_pin.plant.pinocchio_plant import Plant
 
 DT = 1e-3
 PAN, PITCH, SLIDE = 2, 3, 4
@@ -272,7 +272,7 @@ def test_light_joint_with_friction_does_not_chatter(tmp_path):
 
 def test_packed_servo_step_is_servo_step_with_its_constants_packed(damped):
     """Every constant lands where servo_step reads it: stops, friction, limits, S, h."""
-    from pbvs_pin.servo import ServoConstants, pack_servos, packed_servo_step, servo_step
+    from pbvs_pin.model.servo import ServoConstants, pack_servos, packed_servo_step, servo_step
 
     servo = ServoModel.from_robot(damped)
     model, data = damped.model, damped.data
@@ -335,7 +335,7 @@ def test_an_arm_that_moves_no_mass_is_refused(tmp_path):
 
 def _one_joint(friction: float, integral_rate: float = 0.0, h: float = DT):
     """:class:`ServoConstants` of a single joint: no damping, no limits, no stops."""
-    from pbvs_pin.servo import FRICTION_SPEED, ServoConstants
+    from pbvs_pin.model.servo import FRICTION_SPEED, ServoConstants
 
     one, empty = np.ones(1), np.zeros(0)
     return ServoConstants(
@@ -352,7 +352,7 @@ def test_one_step_of_one_joint_is_the_linearly_implicit_equation(friction, v, r)
     """One joint of inertia M: ``(M + h (K + F')) v1 = M v + h (K r + F tanh(r / w) - F tanh(v /
     w) + F' v)``, ``F' = F / w (1 - tanh^2(v / w))``, ``K = M / T``, the band ``w = max(v_s,
     F h / M)`` (servo_step's docstring and FRICTION_SPEED's, written out here)."""
-    from pbvs_pin.servo import FRICTION_SPEED, servo_step
+    from pbvs_pin.model.servo import FRICTION_SPEED, servo_step
 
     mass = 0.01  # [kg m^2]: F h / M = 0.1 rad/s for F = 1 N m, above v_s
     width = max(FRICTION_SPEED, friction * DT / mass)
@@ -374,7 +374,7 @@ def test_one_step_of_one_joint_is_the_linearly_implicit_equation(friction, v, r)
 
 def test_the_integral_moves_only_where_there_is_integral_action():
     """``e_{k+1} = e_k + h (r - v_{k+1})`` with ``K' = K (1 + h / T_I)``; none without it."""
-    from pbvs_pin.servo import servo_step
+    from pbvs_pin.model.servo import servo_step
 
     mass, rate, r = 0.01, 1.0 / (5 * 0.02), 0.05
     zero = np.zeros(1)
@@ -395,7 +395,7 @@ def test_the_integral_moves_only_where_there_is_integral_action():
 def test_packed_constants_are_the_servos_own(damped):
     """Each named view of :func:`pack_servos`' buffers holds the servo's field; ``h`` and ``v_s``
     distinct (4 ms against 1 ms)."""
-    from pbvs_pin.servo import pack_servos, servo_constants
+    from pbvs_pin.model.servo import pack_servos, servo_constants
 
     servo = ServoModel.from_robot(damped)
     constants = servo_constants(*pack_servos(servo, damped.selection, servo.gravity_weight, 0.004))
@@ -451,7 +451,7 @@ def test_a_stop_set_and_released_in_one_step_gives_the_consistent_active_set():
     """Two coupled joints near their limits: the first pass stops a joint whose stop, once the
     other servo saturates, would pull it into its limit; the step must release it again and
     solve once more. The reference enumerates every active set (``_active_sets``)."""
-    from pbvs_pin.servo import FRICTION_SPEED, ServoConstants, servo_step
+    from pbvs_pin.model.servo import FRICTION_SPEED, ServoConstants, servo_step
 
     mass = np.array([[1.1362882, -0.56372767], [-0.56372767, 0.37876809]])
     bias = np.array([0.08807699, -0.31913038])

@@ -23,7 +23,7 @@ from simhelpers import (
     trapezoid,
 )
 
-from pbvs_pin.manipulability import arm_manipulability
+from pbvs_pin.model.manipulability import arm_manipulability
 from pbvs_pin.sim.log import CHANNELS, RunLog
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.obstacles import (

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pbvs_pin.bringup.home import CAMERA_FORWARD
 from pbvs_pin.control.kinematic import PassivityController, ServoGains
 from pbvs_pin.control.secondary import (
     BaseHeading,
@@ -21,7 +22,6 @@ from pbvs_pin.control.secondary import (
     heading_term,
 )
 from pbvs_pin.control.stops import stop_weights
-from pbvs_pin.home import CAMERA_FORWARD
 
 SCALE = 150.0
 N = 6

@@ -385,7 +385,7 @@ def test_run_meshcat_rejects_a_bad_speed_without_a_traceback(tmp_path, capsys):
 def test_view_robot_html_has_every_link_and_the_frustum(browser, tmp_path, capsys, name):
     from conftest import URDF_DIR
 
-    from pbvs_pin.catalogue import build_robot
+    from pbvs_pin.bringup.catalogue import build_robot
 
     name = str(URDF_DIR / "pioneer_cyton.urdf") if name == "urdf" else name
     html = tmp_path / "robot.html"

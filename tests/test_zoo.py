@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pbvs_pin.catalogue import RECIPES
+from pbvs_pin.bringup.catalogue import RECIPES
 from pbvs_pin.cli import main
 from pbvs_pin.exceptions import OutputError, PbvsWarning
 from pbvs_pin.sim.loop import simulate
@@ -164,7 +164,7 @@ def test_vega_asks_for_a_loop_gain_the_net_must_cut_in_experiment4():
 def test_errors_name_files_without_this_machines_folders():
     import sysconfig
 
-    from pbvs_pin.shipped import shipped_urdf
+    from pbvs_pin.model.shipped import shipped_urdf
 
     installed = Path(sysconfig.get_paths()["purelib"]) / "rtbdata" / "xacro" / "irb140.urdf"
     row = {"robot": "r", "engine": "pinocchio", "experiment": "experiment1",

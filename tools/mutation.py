@@ -92,7 +92,7 @@ MODULES = {
         sample=50,
     ),
     "estimation": Module(
-        "pbvs_pin/estimation.py",
+        "pbvs_pin/perception/estimation.py",
         (
             "AlphaBetaFilter.__init__",
             "AlphaBetaFilter.reset",
@@ -133,7 +133,7 @@ MODULES = {
         sample=30,
     ),
     "servo": Module(
-        "pbvs_pin/servo.py",
+        "pbvs_pin/model/servo.py",
         (
             "scheduled_stiffness",
             "ServoModel.from_robot",

@@ -23,8 +23,8 @@ import math
 
 import numpy as np
 
-from pbvs_pin.estimation import MAX_TARGET_SPEED
 from pbvs_pin.exceptions import ControlInputError
+from pbvs_pin.perception.estimation import MAX_TARGET_SPEED
 
 MAX_COORDINATE = 1e6
 """Largest ``|q_i|`` [m or rad]: odometry a thousand kilometres from its origin."""

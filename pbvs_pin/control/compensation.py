@@ -4,7 +4,7 @@ r"""Dynamic compensation, eq. (20).
 
 with ``M``, ``C``, ``g`` the velocity-reference model of eq. (1) built from the controller's
 own Pinocchio model and its model of the servos (the matrices of
-:meth:`pbvs_pin.servo.ServoModel.reference_model`, applied in the compiled
+:meth:`pbvs_pin.model.servo.ServoModel.reference_model`, applied in the compiled
 :func:`compensation_law`, with the servo's loop gain recomputed from the mass matrix at every
 step). With an exact
 model it gives ``d/dt (v - u) = -K_D (v - u)``, eq. (21). The paper compensates the platform
@@ -25,13 +25,13 @@ import numpy.typing as npt
 import pinocchio as pin
 from numba import njit
 
-from pbvs_pin.dynamics import actuated_terms
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.servo import scheduled_stiffness
+from pbvs_pin.model.dynamics import actuated_terms
+from pbvs_pin.model.servo import scheduled_stiffness
 
 if TYPE_CHECKING:
-    from pbvs_pin.robot import MobileManipulator
-    from pbvs_pin.servo import ServoModel
+    from pbvs_pin.model.robot import MobileManipulator
+    from pbvs_pin.model.servo import ServoModel
 
 
 @njit(cache=True, inline="always")
@@ -85,7 +85,7 @@ def compensation_law(
               g = K_e^{-1} (I - G) S^T g_{rb},
 
     with the servos' loop gain ``K_e,i = a_i sum_j |M_v,ij(q)| + b_i`` at this ``q``
-    (:func:`pbvs_pin.servo.scheduled_stiffness`; :class:`pbvs_pin.servo.ServoModel` has
+    (:func:`pbvs_pin.model.servo.scheduled_stiffness`; :class:`pbvs_pin.model.servo.ServoModel` has
     ``a = 1 / T`` and ``b = D``, its damping fed forward),
 
     .. math:: v_{ref} = M(\dot u - K_D (v - u)) + C v + g

@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.joint_angles import arm_difference
+from pbvs_pin.model.joint_angles import arm_difference
 
 
 @njit(cache=True, inline="always")
@@ -28,7 +28,7 @@ def posture_term(
     r"""Eq. (19): ``f_i = k_Lambda (theta_id - theta_i)``. Shape (n_arm,).
 
     A continuous joint's ``theta_id - theta_i`` is the shortest way round
-    (:func:`~pbvs_pin.joint_angles.arm_difference`): 0.02 rad across ``+-pi`` is 0.02 rad, not
+    (:func:`~pbvs_pin.model.joint_angles.arm_difference`): 0.02 rad across ``+-pi`` is 0.02 rad, not
     ``2 pi - 0.02``.
     """
     return gain * arm_difference(target, arm, continuous)
@@ -82,7 +82,7 @@ def heading_term(rotation: np.ndarray, q: np.ndarray, gain: float) -> float:
     ``wRc e_z`` on the floor (its x and y in the world) and ``b``
     the platform's forward axis ``[cos, sin]`` of the planar root joint (``q[2:4]``). ``psi``
     is the camera's heading relative to the drive direction [rad], 0 at the home posture
-    (:mod:`pbvs_pin.home`); ``|c_h|`` fades the term out for a camera looking up or down.
+    (:mod:`pbvs_pin.bringup.home`); ``|c_h|`` fades the term out for a camera looking up or down.
     In the null space of ``J`` it turns the platform and counter-rotates the arm, so that the
     camera's depth, the largest motion the task asks for, lies along the way the platform
     drives. A platform that cannot move sideways needs that: a camera that looks across it

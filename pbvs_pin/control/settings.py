@@ -37,9 +37,9 @@ from pbvs_pin.control.tables import (
 )
 from pbvs_pin.control.upright import delayed_margin
 from pbvs_pin.exceptions import ScenarioError
-from pbvs_pin.manipulability import max_manipulability_posture
-from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.servo import ServoModel
+from pbvs_pin.model.manipulability import max_manipulability_posture
+from pbvs_pin.model.robot import MobileManipulator
+from pbvs_pin.model.servo import ServoModel
 from pbvs_pin.validation import as_number, as_numbers, positive_number
 
 HISTORY_SECONDS = 2.0
@@ -190,7 +190,7 @@ def _reference_gains(values: tuple, model: MobileManipulator) -> tuple:
     """Gains written for the paper's robot (2 base + 3 arm values) fit any robot.
 
     The base values go to the robot's base velocities
-    (:meth:`pbvs_pin.base.BaseAdapter.per_velocity`: the forward speed's to ``vx`` and ``vy``
+    (:meth:`pbvs_pin.model.base.BaseAdapter.per_velocity`: the forward speed's to ``vx`` and ``vy``
     of a holonomic base) and the last arm value is repeated for every arm joint.
     """
     if len(values) == 5 and model.n != 5 and model.n_base in (2, 3):
@@ -230,7 +230,7 @@ def posture_target(settings: ControllerSettings, model: MobileManipulator) -> np
     space for the whole run, and the pull leaks into the features along the weakest direction
     of the ``J^T`` feedback (the depth): xArm7 Experiment 4 ends 9 px off, TIAGo 2 px. The
     default ``"home"`` is the most manipulable posture among those in which the camera looks
-    forward, upright (:func:`pbvs_pin.home.compute_home`), which the task can reach.
+    forward, upright (:func:`pbvs_pin.bringup.home.compute_home`), which the task can reach.
     """
     if settings.secondary.posture_target == "home":
         return model.home_arm.copy()

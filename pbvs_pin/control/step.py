@@ -3,8 +3,9 @@ r"""The whole control step in one compiled call, for the 1 kHz loop.
 :func:`fused_control_step` composes the equations' compiled kernels exactly as the modular
 classes do, each from the module named for it: the secondary objectives of eqs. (16)-(19)
 (:mod:`pbvs_pin.control.secondary`), the features and Jacobians of eq. (3)
-(:mod:`pbvs_pin.features`), the passivity law of eq. (34) (:mod:`pbvs_pin.control.kinematic`)
-and the dynamic compensation of eq. (20) (:mod:`pbvs_pin.control.compensation`).
+(:mod:`pbvs_pin.perception.features`), the passivity law of eq. (34)
+(:mod:`pbvs_pin.control.kinematic`) and the dynamic compensation of eq. (20)
+(:mod:`pbvs_pin.control.compensation`).
 :class:`FusedControlStep` packs the controller's model, gains and built-in secondary
 objectives once, in the buffers named by :mod:`pbvs_pin.control.layout`; then each step makes
 its Pinocchio calls and one call of :func:`fused_control_step`, which also brings the newest
@@ -55,9 +56,9 @@ from pbvs_pin.control.secondary import (
 )
 from pbvs_pin.control.tracking import predict_points
 from pbvs_pin.control.upright import Safety, upright_row
-from pbvs_pin.features import ImageMeasurement, feature_jacobians
-from pbvs_pin.joint_angles import arm_angles
 from pbvs_pin.linalg import matmul
+from pbvs_pin.model.joint_angles import arm_angles
+from pbvs_pin.perception.features import ImageMeasurement, feature_jacobians
 
 LOCAL = pin.LOCAL
 NAN = float("nan")
@@ -65,8 +66,8 @@ _NO_WORLD = np.zeros((0, 3))
 """``world`` when the step does not predict."""
 
 if TYPE_CHECKING:
-    from pbvs_pin.features import FeatureSet
-    from pbvs_pin.robot import MobileManipulator
+    from pbvs_pin.model.robot import MobileManipulator
+    from pbvs_pin.perception.features import FeatureSet
 
 
 @njit(cache=True)

@@ -15,11 +15,11 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
-from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.control.kinematic import FEEDBACK_LAWS, ServoGains
 from pbvs_pin.control.upright import LOOP_GAIN_MARGIN, RESTORING_RATE
-from pbvs_pin.estimation import NOISE_ADAPTIVE, velocity_filter
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.model.camera import CameraIntrinsics
+from pbvs_pin.perception.estimation import NOISE_ADAPTIVE, velocity_filter
 from pbvs_pin.toml_keys import NON_NEGATIVE, POSITIVE, Section, key
 
 MAX_IMAGE_PX = 100_000
@@ -59,7 +59,7 @@ class CameraSection(Section):
     )  # fmt: skip
     detector: str = key(
         "colour", "Detector of a rendered camera, by its registered name "
-        "(pbvs_pin.detection.register_detector).",
+        "(pbvs_pin.perception.detection.register_detector).",
     )  # fmt: skip
     image_noise: float = key(
         0.0, "Rendered camera: standard deviation of the per-pixel noise [grey levels of 255].",
@@ -115,7 +115,7 @@ class CameraSection(Section):
             )
         self.intrinsics()
         if self.model == "rendered":
-            from pbvs_pin.detection import detector_names  # OpenCV only when rendering
+            from pbvs_pin.perception.detection import detector_names  # OpenCV only when rendering
 
             if self.detector not in detector_names():
                 raise GainError(
@@ -270,8 +270,8 @@ class SecondarySection(Section):
     posture_target: str = key(
         "home",
         "theta_d of eq. (19): 'home', the robot's home posture (the most manipulable posture "
-        "with the camera looking forward, upright: pbvs_pin.home), or 'max_manipulability', "
-        "the paper's unconstrained maximum of the arm's manipulability.",
+        "with the camera looking forward, upright: pbvs_pin.bringup.home), or "
+        "'max_manipulability', the paper's unconstrained maximum of the arm's manipulability.",
         choices=("home", "max_manipulability"),
     )
     joint_limits: bool = key(True, "Keep the arm joints away from their limits.")

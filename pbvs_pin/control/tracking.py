@@ -38,12 +38,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from pbvs_pin.camera import MIN_DEPTH, back_project_points, project_points
 from pbvs_pin.control.gating import InnovationGate
 from pbvs_pin.control.noise import PixelNoise
-from pbvs_pin.estimation import VelocityEstimator
-from pbvs_pin.features import ImageMeasurement
-from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.model.camera import MIN_DEPTH, back_project_points, project_points
+from pbvs_pin.model.robot import MobileManipulator
+from pbvs_pin.perception.estimation import VelocityEstimator
+from pbvs_pin.perception.features import ImageMeasurement
 
 
 @njit(cache=True, inline="always")

@@ -24,8 +24,8 @@ from rclpy.serialization import deserialize_message
 from rosbags.rosbag2 import Reader
 
 from pbvs_pin.controller import Controller
-from pbvs_pin.detection import detector_from
 from pbvs_pin.exceptions import LogError
+from pbvs_pin.perception.detection import detector_from
 from pbvs_pin.ros import messages
 from pbvs_pin.ros.node import frame_of, step_inputs
 from pbvs_pin.ros.run_bag import RUN_TOPIC

@@ -1,7 +1,7 @@
 """``pbvs-pin ros control`` and ``pbvs-pin ros sim``: their arguments and what they run.
 
 This module imports no ROS: :func:`add_arguments` only declares the arguments, and each
-command imports :mod:`pbvs_pin.ros.node` or :mod:`pbvs_pin.ros.sim` when it runs, raising
+command imports :mod:`pbvs_pin.ros.node` or :mod:`pbvs_pin.ros.sim_robot` when it runs, raising
 :class:`~pbvs_pin.exceptions.RosUnavailable` (one line on the command line) when the ``ros``
 extra is not installed.
 """
@@ -176,7 +176,7 @@ def _control(args: argparse.Namespace, scenario_of: Callable) -> None:
 
 def _sim(args: argparse.Namespace, scenario_of: Callable) -> None:
     """Run the simulated robot for the scenario's duration; print the final error."""
-    sim_module = ros_module("sim")
+    sim_module = ros_module("sim_robot")
     scenario = scenario_of(args)
     rclpy = _init(args.ros_args)
     node = None
@@ -214,7 +214,7 @@ def _sim(args: argparse.Namespace, scenario_of: Callable) -> None:
 
 def _replay(args: argparse.Namespace, scenario_of: Callable) -> None:
     """Print the comparison of the replayed and recorded commands (JSON)."""
-    replay_module = ros_module("replay")
+    replay_module = ros_module("bag_replay")
     if args.lag < 0:
         raise GainError(f"--lag: expected 0 or more periods, got {args.lag}", "lag")
     scenario = control_scenario(args, scenario_of)

@@ -29,9 +29,9 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import CameraInfo, Image, JointState, LaserScan
 from std_msgs.msg import Float64MultiArray
 
-from pbvs_pin.camera import CameraIntrinsics
 from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
-from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.model.camera import CameraIntrinsics
+from pbvs_pin.model.robot import MobileManipulator
 
 INTRINSICS_TOLERANCE = 0.5
 """Largest difference [px] between CameraInfo's ``K`` and the controller's intrinsics."""

@@ -43,12 +43,12 @@ from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, JointState, LaserScan
 from std_msgs.msg import Bool, Float64MultiArray
 
-from pbvs_pin.camera_frame import CameraFrame
 from pbvs_pin.control.bounds import MAX_STEP_GAP
 from pbvs_pin.controller import Controller
-from pbvs_pin.detection import detector_from
 from pbvs_pin.exceptions import GainError, PbvsError
 from pbvs_pin.interrupts import interrupted_in_compiled_code
+from pbvs_pin.perception.camera_frame import CameraFrame
+from pbvs_pin.perception.detection import detector_from
 from pbvs_pin.ros import messages
 from pbvs_pin.sim.scenario import Scenario
 
@@ -101,7 +101,7 @@ def frame_of(message: Image, detector, camera, diameter: float) -> CameraFrame:
 
     Args:
         message: The image (``rgb8`` or ``bgr8``).
-        detector: Finds the spheres (:func:`pbvs_pin.detection.detector_from`).
+        detector: Finds the spheres (:func:`pbvs_pin.perception.detection.detector_from`).
         camera: The controller's intrinsics.
         diameter: The spheres' diameter [m].
 

@@ -34,7 +34,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CompressedImage
 from std_msgs.msg import String
 
-from pbvs_pin import frames
+from pbvs_pin.model import frames
 from pbvs_pin.ros import messages
 from pbvs_pin.ros.bag import BagRecorder
 from pbvs_pin.ros.tf import TF_TYPE, tf_message

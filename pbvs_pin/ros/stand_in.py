@@ -21,8 +21,8 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Bool, Float64MultiArray
 
-from pbvs_pin import frames
-from pbvs_pin.detection import SPHERE_HUES, sphere_rgba
+from pbvs_pin.model import frames
+from pbvs_pin.perception.detection import SPHERE_HUES, sphere_rgba
 from pbvs_pin.ros import messages
 from pbvs_pin.sim.scenario import Scenario
 

@@ -18,8 +18,8 @@ import numpy as np
 import pinocchio as pin
 from rosbags.typesys import Stores, get_typestore
 
-from pbvs_pin import frames
-from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.model import frames
+from pbvs_pin.model.robot import MobileManipulator
 
 TYPESTORE = get_typestore(Stores.ROS2_KILTED)
 """The message definitions the bags are written with (ROS 2 Kilted)."""

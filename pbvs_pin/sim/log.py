@@ -38,12 +38,12 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 
 import numpy as np
 
-from pbvs_pin.base import DifferentialDrive
-from pbvs_pin.camera import MIN_DEPTH
 from pbvs_pin.exceptions import LogError, OutputError
-from pbvs_pin.features import ImageMeasurement
-from pbvs_pin.manipulability import arm_jacobian, manipulability
+from pbvs_pin.model.base import DifferentialDrive
+from pbvs_pin.model.camera import MIN_DEPTH
+from pbvs_pin.model.manipulability import arm_jacobian, manipulability
 from pbvs_pin.outputs import Output, check_output
+from pbvs_pin.perception.features import ImageMeasurement
 from pbvs_pin.sim.obstacles import clearance
 from pbvs_pin.sim.passivity_signals import feedback_terms, passivity_terms, true_passivity_terms
 from pbvs_pin.sim.scenario import obstacle_table
@@ -473,8 +473,8 @@ def _slip(
               \dot\theta = \Delta\theta / \Delta t,\quad
               [u, \omega] = P\, \Delta a / \Delta t
 
-    (``P``: :meth:`pbvs_pin.base.DifferentialDrive.platform_velocity`, ``a`` the wheel angles).
-    The chord of an arc of constant curvature points along its mid heading, so that a
+    (``P``: :meth:`pbvs_pin.model.base.DifferentialDrive.platform_velocity`, ``a`` the wheel
+    angles). The chord of an arc of constant curvature points along its mid heading, so that a
     platform that does not slip has ``v_l`` near zero (zero on such an arc). The first sample
     (no interval) is zero; a platform without a differential drive has no ``wheel_velocity``
     (NaN).

@@ -20,11 +20,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pbvs_pin.camera_frame import CameraFrame
 from pbvs_pin.compile_cache import announce_compiles
 from pbvs_pin.control.tracking import TargetTracker
 from pbvs_pin.exceptions import RunInterrupted
-from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.model.robot import MobileManipulator
+from pbvs_pin.perception.camera_frame import CameraFrame
 from pbvs_pin.sim.log import RunLog, RunRecorder
 from pbvs_pin.sim.obstacles import footprint_points
 from pbvs_pin.sim.scenario import Scenario
@@ -34,7 +34,7 @@ from pbvs_pin.sim.vision import Frame
 from pbvs_pin.validation import as_instance
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from pbvs_pin.detection import CameraImage
+    from pbvs_pin.perception.detection import CameraImage
 
 
 @dataclass(frozen=True)

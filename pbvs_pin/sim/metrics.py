@@ -200,8 +200,8 @@ def posture_error(
     """The arm's distance from ``posture`` per sample and joint [rad or m].
 
     A continuous joint's is the shortest way round, in ``[-pi, pi)``
-    (:func:`pbvs_pin.joint_angles.arm_difference`): an angle and the same angle plus ``2 pi`` are
-    one posture.
+    (:func:`pbvs_pin.model.joint_angles.arm_difference`): an angle and the same angle plus ``2 pi``
+    are one posture.
 
     Args:
         arm: Arm positions. Shape (T, n_arm).

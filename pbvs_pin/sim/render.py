@@ -1,12 +1,12 @@
 """The scene drawn by MuJoCo from the camera, at the camera's intrinsics and image size.
 
 :class:`SceneRenderer` builds a MuJoCo model of the *scene* (not of the physics) from the
-robot's assembled URDF (:attr:`pbvs_pin.robot.MobileManipulator.urdf_xml`, through MuJoCo's
+robot's assembled URDF (:attr:`pbvs_pin.model.robot.MobileManipulator.urdf_xml`, through MuJoCo's
 URDF importer with its visual geometry kept, colours from the URDF's materials), adds the two
-target spheres (mocap bodies, colours of :data:`pbvs_pin.detection.SPHERE_HUES`), the
+target spheres (mocap bodies, colours of :data:`pbvs_pin.perception.detection.SPHERE_HUES`), the
 obstacles (vertical prisms of their height), a checkered floor, an overhead light and the
 camera's headlight. :meth:`SceneRenderer.render` places the robot at a configuration of the
-controller's model (planar pose and arm joints, as :class:`pbvs_pin.mujoco_plant.MujocoPlant`
+controller's model (planar pose and arm joints, as :class:`pbvs_pin.plant.mujoco_plant.MujocoPlant`
 does), the spheres at their centres and MuJoCo's camera at ``world_T_camera``, and draws with
 MuJoCo's offscreen renderer. It draws only the pose it is given: on either plant engine the
 scene's own model has no physics.
@@ -14,7 +14,7 @@ scene's own model has no physics.
 The camera: MuJoCo's camera looks along its ``-z`` with ``y`` up, the optical frame (REP-103)
 along ``z`` with ``y`` down, so ``R_mujoco = R_optical diag(1, -1, -1)``; the vertical field
 of view is ``2 atan(H / (2 f))`` with square pixels and the principal point at the image
-centre, as :class:`pbvs_pin.camera.CameraIntrinsics` has.
+centre, as :class:`pbvs_pin.model.camera.CameraIntrinsics` has.
 
 Headless rendering needs an OpenGL context without a display: ``MUJOCO_GL=egl`` (Debian's
 ``libegl1`` and ``libegl-mesa0``, Mesa's software rasteriser when there is no GPU) or
@@ -37,11 +37,11 @@ import numpy as np
 import pinocchio as pin
 from lxml import etree
 
-from pbvs_pin import frames
-from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.detection import SPHERE_HUES, sphere_rgba
 from pbvs_pin.exceptions import PbvsWarning, RenderingUnavailable, UrdfError
-from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.model import frames
+from pbvs_pin.model.camera import CameraIntrinsics
+from pbvs_pin.model.robot import MobileManipulator
+from pbvs_pin.perception.detection import SPHERE_HUES, sphere_rgba
 from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle, Obstacle
 
 OPTICAL_TO_MUJOCO = np.diag([1.0, -1.0, -1.0])

@@ -5,7 +5,7 @@ With ``camera.model = "rendered"`` the :class:`~pbvs_pin.sim.vision.CameraSensor
 projecting the sphere centres. The rendered camera reads the true configuration from the
 plant itself (the robot's links hide the target when they are in the way), draws the scene
 with :class:`~pbvs_pin.sim.render.SceneRenderer` from the camera pose it is given, applies the
-image effects, and runs the detector (:mod:`pbvs_pin.detection`). The frame's latency,
+image effects, and runs the detector (:mod:`pbvs_pin.perception.detection`). The frame's latency,
 drops and occlusion episodes then act as for the point camera; the ``noise_px`` key does not
 apply (the pixel noise is the image's own, :attr:`ImageEffects.noise`).
 
@@ -29,9 +29,9 @@ from typing import Any, Protocol
 import numpy as np
 import pinocchio as pin
 
-from pbvs_pin.detection import CameraImage, Detector
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.model.robot import MobileManipulator
+from pbvs_pin.perception.detection import CameraImage, Detector
 from pbvs_pin.sim.render import SceneRenderer
 
 RENDER_STREAM = 21
@@ -136,7 +136,7 @@ class RenderedCamera:
         Returns:
             Points ``[u, v]`` [px] (shape (2, 2)), apparent diameters [px] (shape (2,)) and
             visibility, as the detector gives them; the frame itself is kept as
-            :attr:`latest` (a :class:`~pbvs_pin.detection.CameraImage`).
+            :attr:`latest` (a :class:`~pbvs_pin.perception.detection.CameraImage`).
         """
         image = self.draw(t, camera_pose, centres)
         points, diameters, visible = self.detector.detect(image)

@@ -29,8 +29,8 @@ from pbvs_pin.control.tables import (
     TargetSection,
 )
 from pbvs_pin.exceptions import GainError, ScenarioError
-from pbvs_pin.shipped import scenario_dir as scenario_dir  # where it was, for its users
-from pbvs_pin.shipped import scenario_file, shipped_scenarios
+from pbvs_pin.model.shipped import scenario_dir as scenario_dir  # where it was, for its users
+from pbvs_pin.model.shipped import scenario_file, shipped_scenarios
 from pbvs_pin.sim.consistency import check_consistency
 from pbvs_pin.sim.obstacles import BoxObstacle, CircleObstacle
 from pbvs_pin.sim.sections import (

@@ -15,8 +15,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar, Self
 
-from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.catalogue import REFERENCE_ROBOT
+from pbvs_pin.bringup.catalogue import REFERENCE_ROBOT
+from pbvs_pin.bringup.robot_spec import build_robot_from, check_forms, forms_given, is_path
 from pbvs_pin.control.tables import (
     CameraSection,
     CompensationSection,
@@ -26,9 +26,9 @@ from pbvs_pin.control.tables import (
     TargetSection,
 )
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.platform_frame import FORWARD_AXES
-from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.robot_spec import build_robot_from, check_forms, forms_given, is_path
+from pbvs_pin.model.camera import CameraIntrinsics
+from pbvs_pin.model.platform_frame import FORWARD_AXES
+from pbvs_pin.model.robot import MobileManipulator
 from pbvs_pin.toml_keys import NON_NEGATIVE, POSITIVE, Section, key
 
 
@@ -36,13 +36,13 @@ from pbvs_pin.toml_keys import NON_NEGATIVE, POSITIVE, Section, key
 class RobotSection(Section):
     """``[robot]``: which robot, in one of three forms, and where its arm starts.
 
-    The forms (:data:`~pbvs_pin.robot_spec.ROBOT_FORMS`) are a shipped ``name``; a ``urdf``
+    The forms (:data:`~pbvs_pin.bringup.robot_spec.ROBOT_FORMS`) are a shipped ``name``; a ``urdf``
     file with its ``camera_frame``; or an assembly of a ``base`` and an ``arm`` at ``mount``
     with the camera at ``camera_pose`` in ``camera_link``. A file gives exactly one; none is
     the reference robot. Relative URDF paths (``urdf``, and ``base``/``arm`` ending in
     ``.urdf``) are read against the folder of the file (:attr:`source`) and kept absolute. The
     drive parameters replace the drive axle found in the platform URDF
-    (:mod:`pbvs_pin.robot_spec`).
+    (:mod:`pbvs_pin.bringup.robot_spec`).
 
     Attributes:
         source: File the table was read from, for error messages and relative paths.
@@ -114,7 +114,7 @@ class RobotSection(Section):
     )  # fmt: skip
     geometry_density: float | None = key(
         None, "Density [kg/m^3] giving each link without <inertial> the inertia of its "
-        "collision geometry (pbvs_pin.link_inertia); the links go to the run's meta. Absent: "
+        "collision geometry (pbvs_pin.model.link_inertia); the links go to the run's meta. Absent: "
         "such links stay massless.", sign=POSITIVE, optional=float,
     )  # fmt: skip
     home: tuple[float, ...] | None = key(

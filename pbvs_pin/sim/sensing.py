@@ -2,8 +2,8 @@ r"""What the controller reads of the robot: encoders, wheel odometry and the las
 
 The loop never hands the plant's exact state to the controller. At every control step
 :meth:`Sensing.read` reads the robot as a real one is read, the same way on both plant engines
-(:class:`pbvs_pin.plant.Plant` and :class:`pbvs_pin.mujoco_plant.MujocoPlant` both expose
-``q``, and ``wheel_angles`` of the left and right drive wheels):
+(:class:`pbvs_pin.plant.pinocchio_plant.Plant` and :class:`pbvs_pin.plant.mujoco_plant.MujocoPlant`
+both expose ``q``, and ``wheel_angles`` of the left and right drive wheels):
 
 - **arm positions**: absolute encoders, ``theta = round(theta_true / delta) delta`` with
   ``delta = 2 pi / 2^bits`` (``sensing.arm_encoder_bits``) for a revolute joint and
@@ -22,10 +22,10 @@ The loop never hands the plant's exact state to the controller. At every control
   ``delta / T`` (one count); the noise adds a standard deviation ``sigma`` before the filter,
   ``sigma sqrt((1 - p) / (1 + p))`` after it (pole ``p = e^{-T/tau}``). The platform's
   ``[u, omega]`` follow from the filtered wheel speeds
-  (:meth:`pbvs_pin.base.DifferentialDrive.platform_velocity`);
+  (:meth:`pbvs_pin.model.base.DifferentialDrive.platform_velocity`);
 - **gyro**: the platform's true yaw rate plus a bias and Gaussian noise
   (``sensing.gyro_bias``, ``sensing.gyro_noise``), read once a control step;
-- **platform pose**: wheel odometry (:class:`pbvs_pin.odometry.WheelOdometry`) from the
+- **platform pose**: wheel odometry (:class:`pbvs_pin.plant.odometry.WheelOdometry`) from the
   counts, with the controller's drive model, started at the true pose at ``t = 0``; its
   heading, and the measured yaw rate, from the gyro reading times the period
   (``sensing.heading = "gyro"``, gyro-corrected odometry) or from the counts
@@ -50,12 +50,12 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 from numba import njit
 
-from pbvs_pin.base import DifferentialDrive, unicycle_twist
-from pbvs_pin.joint_angles import arm_angles
-from pbvs_pin.odometry import WheelOdometry, odometry_update, read_counts
+from pbvs_pin.model.base import DifferentialDrive, unicycle_twist
+from pbvs_pin.model.joint_angles import arm_angles
+from pbvs_pin.plant.odometry import WheelOdometry, odometry_update, read_counts
 
 if TYPE_CHECKING:
-    from pbvs_pin.robot import MobileManipulator
+    from pbvs_pin.model.robot import MobileManipulator
     from pbvs_pin.sim.setup import Setup
 
 ENCODER_STREAM = 9
@@ -282,7 +282,7 @@ def sensing_step(
         constants: :class:`Constants`. Shape (11,).
         state: ``[arm readings, filtered v, filtered wheel speeds, filtered yaw rate]``,
             updated in place. Shape (n_arm + n + 3,).
-        odometry: :attr:`pbvs_pin.odometry.WheelOdometry.state` (unused without wheels),
+        odometry: :attr:`pbvs_pin.plant.odometry.WheelOdometry.state` (unused without wheels),
             updated in place. Shape (10,).
         q: Output: the measured configuration. Shape (nq,).
         v: Output: the measured actuated velocity. Shape (n,).

@@ -15,16 +15,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.optimize import least_squares
 
+from pbvs_pin.bringup.robot_spec import arm_posture
 from pbvs_pin.control.kinematic import PassivityController
 from pbvs_pin.control.secondary import SecondaryObjective
 from pbvs_pin.control.settings import ControllerSettings
 from pbvs_pin.controller import Controller
-from pbvs_pin.estimation import VelocityEstimator
-from pbvs_pin.features import TwoSphereFeatures
-from pbvs_pin.plant import Plant
-from pbvs_pin.robot import MobileManipulator
-from pbvs_pin.robot_spec import arm_posture
-from pbvs_pin.servo import ServoModel
+from pbvs_pin.model.robot import MobileManipulator
+from pbvs_pin.model.servo import ServoModel
+from pbvs_pin.perception.estimation import VelocityEstimator
+from pbvs_pin.perception.features import TwoSphereFeatures
+from pbvs_pin.plant.pinocchio_plant import Plant
 from pbvs_pin.sim.obstacles import Laser, Obstacle
 from pbvs_pin.sim.scenario import Scenario
 from pbvs_pin.sim.sections import MotionSection
@@ -32,7 +32,7 @@ from pbvs_pin.sim.targets import LineThenStop, Still, TargetMotion, TwoSphereTar
 from pbvs_pin.sim.vision import FAULT_STREAM, CameraFaults, CameraSensor
 
 if TYPE_CHECKING:
-    from pbvs_pin.mujoco_plant import MujocoPlant
+    from pbvs_pin.plant.mujoco_plant import MujocoPlant
     from pbvs_pin.sim.rendered_camera import RenderedCamera
 
 SETTLE_TIME = 0.5
@@ -222,7 +222,7 @@ def _plant(scenario: Scenario, robot: MobileManipulator, q0: np.ndarray) -> Plan
         servo = replace(servo, time_constants=errors.mass_scale * servo.time_constants)
     dt = scenario.simulation.plant_dt
     if scenario.plant.engine == "mujoco":
-        from pbvs_pin.mujoco_plant import MujocoPlant  # MuJoCo is loaded only when asked for
+        from pbvs_pin.plant.mujoco_plant import MujocoPlant  # MuJoCo is loaded only when asked for
 
         return MujocoPlant(
             robot, servo, q0, dt, mass_scale=errors.mass_scale, payload=errors.payload,
@@ -241,7 +241,7 @@ def _rendered_camera(
     target: TwoSphereTarget,
 ) -> RenderedCamera:
     """The rendered camera of ``camera.model = "rendered"``, reading the true plant."""
-    from pbvs_pin.detection import detector_from  # OpenCV and MuJoCo only when rendering
+    from pbvs_pin.perception.detection import detector_from  # OpenCV and MuJoCo only when rendering
     from pbvs_pin.sim.render import SceneRenderer, warn_self_view
     from pbvs_pin.sim.rendered_camera import RENDER_STREAM, ImageEffects, RenderedCamera
 

@@ -27,9 +27,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pbvs_pin.camera import MIN_DEPTH, CameraIntrinsics
 from pbvs_pin.exceptions import GainError
-from pbvs_pin.features import ImageMeasurement
+from pbvs_pin.model.camera import MIN_DEPTH, CameraIntrinsics
+from pbvs_pin.perception.features import ImageMeasurement
 
 if TYPE_CHECKING:
     from pbvs_pin.sim.rendered_camera import RenderedCamera

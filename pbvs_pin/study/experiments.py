@@ -11,7 +11,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from pbvs_pin.catalogue import ROBOT_NAMES
+from pbvs_pin.bringup.catalogue import ROBOT_NAMES
 from pbvs_pin.exceptions import (
     GainError,
     OutputError,

@@ -10,7 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from pbvs_pin.catalogue import OTHER_ROBOTS, REFERENCE_ROBOT
+from pbvs_pin.bringup.catalogue import OTHER_ROBOTS, REFERENCE_ROBOT
 from pbvs_pin.sim.log import (
     write_text_atomically,
 )

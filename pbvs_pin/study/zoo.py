@@ -35,14 +35,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pbvs_pin.exceptions import PbvsError, PbvsWarning
+from pbvs_pin.model.shipped import urdf_dir
 from pbvs_pin.outputs import Output
-from pbvs_pin.shipped import urdf_dir
 from pbvs_pin.study.claims import failed, judge, verdict_text
 from pbvs_pin.study.report import rst_row
 from pbvs_pin.validation import read_toml
 
 if TYPE_CHECKING:  # the command's arguments load without Pinocchio (pbvs-pin --help)
-    from pbvs_pin.robot import MobileManipulator
+    from pbvs_pin.model.robot import MobileManipulator
 
 EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
 """The paper's experiments, as shipped scenarios."""
@@ -83,8 +83,8 @@ class ZooRobot:
 
 def _package_of(source: str) -> str:
     """The distribution a ``[robot]`` URDF source (or shipped robot name) comes from."""
-    from pbvs_pin.assembly import PACKAGE_PREFIX
-    from pbvs_pin.catalogue import RECIPES, REFERENCE_ROBOT
+    from pbvs_pin.bringup.catalogue import RECIPES, REFERENCE_ROBOT
+    from pbvs_pin.model.assembly import PACKAGE_PREFIX
 
     if source.startswith(PACKAGE_PREFIX):
         module = source[len(PACKAGE_PREFIX) :].split("/", 1)[0]
@@ -99,7 +99,7 @@ def _package_of(source: str) -> str:
 
 def _file_package(source: str) -> str:
     """The distribution of a URDF name: shipped, a file of the user's, or example-robot-data."""
-    from pbvs_pin.shipped import shipped_urdf
+    from pbvs_pin.model.shipped import shipped_urdf
 
     if shipped_urdf(source) is not None:
         return SHIPPED_PACKAGE

@@ -36,12 +36,12 @@ Conventions
   Y-up; the viewer rotates its scene root by -pi/2 about X, so a world matrix
   read in the page (``object.matrixWorld``) equals
   ``MESHCAT_TO_THREEJS @ T_meshcat``.
-* Cameras follow the optical-frame convention of :mod:`pbvs_pin.camera`:
+* Cameras follow the optical-frame convention of :mod:`pbvs_pin.model.camera`:
   +z forward (optical axis), +x right, +y down.  The image helpers here take
   *pixels* ``(col, row)`` from the top-left corner, which back-project to the
   ray ``((col - cx) / f, (row - cy) / f, 1)``.  Image coordinates ``xi`` in
   the paper's eq. (2) sign convention (``xi = -(f / z) [x, y]``) convert with
-  ``pbvs_pin.camera.CameraIntrinsics.to_pixel(xi)`` (``col = cx - u``,
+  ``pbvs_pin.model.camera.CameraIntrinsics.to_pixel(xi)`` (``col = cx - u``,
   ``row = cy - v``).
 * Colours are RGB triples in [0, 1] or 0xRRGGBB integers.
 

@@ -9,10 +9,10 @@ eye view is: white circles where the detector found the spheres (centre and appa
 diameter), cyan crosses at the desired features ``xi_d``.
 
 - **Rendered camera** (``camera.model = "rendered"``): the image is the run's own newest frame
-  (:class:`~pbvs_pin.detection.CameraImage`), circled where the run's detector found the
+  (:class:`~pbvs_pin.perception.detection.CameraImage`), circled where the run's detector found the
   spheres; nothing is drawn again.
 - **Points camera**: there is no image, so :meth:`EyePanel.show_points` draws one: the two
-  spheres as discs of their colours (:data:`pbvs_pin.detection.SPHERE_HUES`) at the
+  spheres as discs of their colours (:data:`pbvs_pin.perception.detection.SPHERE_HUES`) at the
   measured points, of the diameter given, on a plain grey background; the same marks on top.
 
 The panel is placed for meshcat's default viewing camera (vertical field of view
@@ -27,8 +27,8 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
-from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.detection import SPHERE_HUES, sphere_rgba
+from pbvs_pin.model.camera import CameraIntrinsics
+from pbvs_pin.perception.detection import SPHERE_HUES, sphere_rgba
 from pbvs_pin.viz.eye_view import mark
 
 if TYPE_CHECKING:  # pragma: no cover - typing only

@@ -18,9 +18,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.detection import ColourDetector, Detector
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.model.camera import CameraIntrinsics
+from pbvs_pin.perception.detection import ColourDetector, Detector
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.scenario import OBSTACLE_KINDS
 from pbvs_pin.sim.targets import centres_from

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from pbvs_pin.exceptions import PointBehindCamera
-from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.model.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.targets import centres_from
 from pbvs_pin.viz.animation import write_replay_html

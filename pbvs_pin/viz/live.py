@@ -32,10 +32,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pbvs_pin.catalogue import build_robot
+from pbvs_pin.bringup.catalogue import build_robot
 from pbvs_pin.exceptions import PbvsError, ViewerUnavailable
-from pbvs_pin.features import TwoSphereFeatures
-from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.model.robot import MobileManipulator
+from pbvs_pin.perception.features import TwoSphereFeatures
 from pbvs_pin.sim.loop import Snapshot
 from pbvs_pin.sim.scenario import Scenario, load_scenario, obstacle_table
 from pbvs_pin.sim.setup import solve_target_start

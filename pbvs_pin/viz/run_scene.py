@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from pbvs_pin.camera import CameraIntrinsics
-from pbvs_pin.catalogue import build_robot
+from pbvs_pin.bringup.catalogue import build_robot
+from pbvs_pin.model.camera import CameraIntrinsics
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.sim.sections import RobotSection
 from pbvs_pin.viz.frustum import (
@@ -40,7 +40,7 @@ from pbvs_pin.viz.robot_scene import RobotScene
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import meshcat
 
-    from pbvs_pin.robot import MobileManipulator
+    from pbvs_pin.model.robot import MobileManipulator
 
 __all__ = [
     "FRUSTUM_DEPTH",
@@ -128,7 +128,7 @@ class RunScene:
 
     Attributes:
         vis: The visualizer the scene lives in.
-        robot: The robot drawn (a :class:`pbvs_pin.robot.MobileManipulator`).
+        robot: The robot drawn (a :class:`pbvs_pin.model.robot.MobileManipulator`).
         facts: Target, desired features and obstacles.
         robot_scene: The robot's geometries.
         spheres: Meshcat paths of the upper and lower sphere.

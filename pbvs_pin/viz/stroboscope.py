@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from pbvs_pin.robot import MobileManipulator
+from pbvs_pin.model.robot import MobileManipulator
 from pbvs_pin.sim.log import RunLog
 from pbvs_pin.viz.plotting import pyplot, run_title
 
