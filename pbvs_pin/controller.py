@@ -10,8 +10,8 @@ same class). At every control step it takes what a robot has:
   drive-axle midpoint on the floor, ``drive_footprint``, in the odometry's fixed frame) and
   the actuated velocities ``v = [u [m/s], omega [rad/s], arm joint rates]``;
 - a camera frame when one arrived (:class:`~pbvs_pin.perception.camera_frame.CameraFrame`: its
-capture
-  time, and the target's image points and depths, or "not visible"); None when none arrived;
+  capture time, and the target's image points and depths, or "not visible"); None when none
+  arrived;
 - a laser reading ``(d [m], alpha [rad])`` of the nearest obstacle when a scan arrived.
 
 and returns the velocity references for the robot's own velocity loops (:class:`ServoCommand`).

@@ -13,16 +13,19 @@ from pathlib import Path
 from pbvs_pin.exceptions import ScenarioError
 from pbvs_pin.validation import as_path
 
+PACKAGE = Path(__file__).resolve().parents[1]
+"""The ``pbvs_pin`` package folder (this module is in its ``model`` package)."""
+
 SHIPPED_URDFS = ("pioneer3at", "cyton_alpha3", "pioneer_cyton")
 """Names of the shipped URDF files (without ``.urdf``)."""
 
 
 def urdf_dir() -> Path:
     """Folder holding the shipped URDF files."""
-    checkout = Path(__file__).resolve().parents[1] / "urdf"
+    checkout = PACKAGE.parent / "urdf"
     if checkout.is_dir():
         return checkout
-    return Path(__file__).resolve().parent / "urdf"
+    return PACKAGE / "urdf"
 
 
 def shipped_urdf(name: str) -> Path | None:
@@ -34,7 +37,7 @@ def shipped_urdf(name: str) -> Path | None:
 
 def scenario_dir() -> Path:
     """Folder of the shipped scenarios."""
-    return Path(__file__).resolve().parent / "scenarios"
+    return PACKAGE / "scenarios"
 
 
 def shipped_scenarios() -> list[str]:
