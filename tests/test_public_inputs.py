@@ -174,7 +174,7 @@ CALLS = {
                            lambda r: {"robot": r, "q": r.home()}),
     "whole_body_manipulability": (lambda r: pbvs_pin.whole_body_manipulability,
                                   lambda r: {"robot": r, "q": r.home()}),
-    "manipulability": (lambda r: pbvs_pin.model.manipulability,
+    "manipulability": (lambda r: pbvs_pin.manipulability,
                        lambda r: {"jacobian": np.eye(6)}),
     "compute_home": (lambda r: pbvs_pin.compute_home,
                      lambda r: {"robot": r, "starts": 1, "refine": 1, "seed": 0}),
