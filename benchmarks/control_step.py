@@ -64,8 +64,8 @@ def _interleaved(*functions, repeats: int = REPEATS) -> tuple[float, ...]:
 
 
 @njit
-def _no_op(a, b, c, d, e, f, g, h, i, j, k, m, n, o, dt, params, indices, state) -> None:
-    """A compiled call that does nothing with the fused step's 18 arguments."""
+def _no_op(a, b, c, d, e, f, g, h, i, j, k, m, n, o, p, dt, params, indices, state) -> None:
+    """A compiled call that does nothing with the fused step's 19 arguments."""
 
 
 def control_step_calls(
@@ -128,8 +128,8 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, flo
         pin.getFrameJacobian(model, data, frame, pin.LOCAL).copy(),
         data.oMf[frame].rotation.copy(), data.oMf[frame].translation.copy(), data.M.copy(),
         data.nle.copy(), data.g.copy(), q, v, measurement.points, measurement.depths,
-        np.zeros((0, 3)), float("nan"), target_velocity, laser, dt, fused.params, fused.indices,
-        fused.state,
+        np.zeros((0, 3)), float("nan"), target_velocity, laser, np.zeros(fused.model.n), dt,
+        fused.params, fused.indices, fused.state,
     )  # fmt: skip
 
     def compiled() -> None:

@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -60,7 +61,12 @@ from pbvs_pin.control.balanced import joint_room
 from pbvs_pin.control.encoders import TIME_TOLERANCE, EncoderHistory
 from pbvs_pin.control.gating import FaultCounts, InnovationGate
 from pbvs_pin.control.kinematic import ControlOutput
-from pbvs_pin.control.secondary import SecondaryInput, secondary_vector
+from pbvs_pin.control.secondary import (
+    SecondaryInput,
+    SecondaryObjective,
+    secondary_vector,
+    user_objectives,
+)
 from pbvs_pin.control.settings import (
     ControllerSettings,
     compensator,
@@ -149,6 +155,10 @@ class Controller:
         robot: The controller's model of the robot; the camera intrinsics are the settings'.
         settings: The settings; the defaults when None.
         announce: Print a line on stderr before compiling the kernels.
+        objectives: The user's own secondary objectives
+            (:class:`~pbvs_pin.control.secondary.SecondaryObjective` subclasses), added to
+            the built-in ones of the settings in ``Lambda`` (eq. 16) at every step; their
+            own state, if any, is theirs to reset (:meth:`reset` keeps them as they are).
 
     Attributes:
         model: The controller's model of the robot (with the settings' intrinsics).
@@ -158,7 +168,8 @@ class Controller:
         posture_target: ``theta_d`` of eq. (19) [rad or m]. Shape (n_arm,).
         law: The kinematic controller (eq. 34, or the IBVS baseline).
         compensator: The dynamic compensation (eq. 20) of the modular path.
-        objectives: The secondary objectives.
+        objectives: The secondary objectives: the settings' built-in ones, then the user's.
+        user_objectives: The user's own objectives, as given.
         tracker: The newest measurement, prediction, hold and velocity filter.
         history: The encoder readings of the last ``settings.history`` seconds.
         counts: Frames and laser readings dropped or changed since the controller was built
@@ -170,8 +181,10 @@ class Controller:
         robot: MobileManipulator,
         settings: ControllerSettings | None = None,
         announce: bool = True,
+        objectives: Sequence[SecondaryObjective] = (),
     ) -> None:
         robot = as_instance("robot", robot, MobileManipulator)
+        self.user_objectives = user_objectives(objectives)
         settings = ControllerSettings() if settings is None else settings
         settings = as_instance("settings", settings, ControllerSettings)
         camera = settings.camera.intrinsics()
@@ -194,7 +207,11 @@ class Controller:
 
     @classmethod
     def from_scenario(
-        cls, scenario: object, robot: MobileManipulator | None = None, announce: bool = True
+        cls,
+        scenario: object,
+        robot: MobileManipulator | None = None,
+        announce: bool = True,
+        objectives: Sequence[SecondaryObjective] = (),
     ) -> Controller:
         """The controller a simulation of ``scenario`` runs.
 
@@ -204,6 +221,7 @@ class Controller:
                 robot, with the kinematic error of ``[model_error]``.
             robot: The controller's model of the robot, replacing the scenario's.
             announce: Print a line on stderr before compiling the kernels.
+            objectives: The user's own secondary objectives (as for the constructor).
 
         Raises:
             ScenarioError: If a value does not fit the robot.
@@ -211,7 +229,7 @@ class Controller:
         if robot is None:
             robot = scenario.robot.build(scenario.camera.intrinsics())
             robot = robot.with_model_error(scenario.model_error.kinematic_scale)
-        return cls(robot, ControllerSettings.from_scenario(scenario), announce)
+        return cls(robot, ControllerSettings.from_scenario(scenario), announce, objectives)
 
     def reset(self) -> None:
         """Forget every frame, reading and command: the state of a controller just built."""
@@ -221,7 +239,10 @@ class Controller:
         camera latency until a frame arrives."""
         self.law = kinematic_law(settings, model, self.latency)
         self.compensator = compensator(settings, model)
-        self.objectives = secondary_objectives(settings, model, self.posture_target)
+        self.objectives = [
+            *secondary_objectives(settings, model, self.posture_target),
+            *self.user_objectives,
+        ]
         self._arm_limits = model.arm_position_limits()
         spec = settings.estimator
         self.counts = FaultCounts()

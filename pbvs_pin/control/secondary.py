@@ -17,8 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from pbvs_pin.exceptions import GainError
+from pbvs_pin.exceptions import GainError, ShapeError, WrongType
 from pbvs_pin.model.joint_angles import arm_difference
+from pbvs_pin.validation import as_instance
 
 
 @njit(cache=True, inline="always")
@@ -375,11 +376,46 @@ class BaseHeading(SecondaryObjective):
         return out
 
 
+BUILT_IN = (ArmPosture, BaseHeading, JointLimitAvoidance, ObstacleAvoidance)
+"""The objectives the compiled step computes itself; any other is a user's, evaluated in
+Python at each step (:func:`contribution_of`)."""
+
+
+def contribution_of(
+    objective: SecondaryObjective, state: SecondaryInput, n_base: int, n: int
+) -> np.ndarray:
+    """One objective's part of ``Lambda``, as a float vector of shape (n,).
+
+    Raises:
+        ShapeError: If the objective returned another shape (named by its class).
+    """
+    part = np.asarray(objective.contribution(state, n_base, n), dtype=float)
+    if part.shape != (n,):
+        raise ShapeError(f"{type(objective).__name__}.contribution", (n,), part.shape)
+    return part
+
+
 def secondary_vector(
     objectives: list[SecondaryObjective], state: SecondaryInput, n_base: int, n: int
 ) -> np.ndarray:
     """``Lambda``: the sum of every objective's contribution. Shape (n,)."""
     total = np.zeros(n)
     for objective in objectives:
-        total += objective.contribution(state, n_base, n)
+        total += contribution_of(objective, state, n_base, n)
     return total
+
+
+def user_objectives(objectives: object) -> tuple[SecondaryObjective, ...]:
+    """The user's secondary objectives as a tuple, each checked to be a SecondaryObjective.
+
+    Raises:
+        WrongType: If ``objectives`` is not a sequence of
+            :class:`~pbvs_pin.control.secondary.SecondaryObjective` (a single objective
+            included: wrap it in a list), naming the item at fault.
+    """
+    if isinstance(objectives, SecondaryObjective) or not isinstance(objectives, list | tuple):
+        raise WrongType("objectives", "a list or tuple of SecondaryObjective", objectives)
+    return tuple(
+        as_instance(f"objectives[{i}]", objective, SecondaryObjective)
+        for i, objective in enumerate(objectives)
+    )

@@ -10,8 +10,10 @@ classes do, each from the module named for it: the secondary objectives of eqs. 
 objectives once, in the buffers named by :mod:`pbvs_pin.control.layout`; then each step makes
 its Pinocchio calls and one call of :func:`fused_control_step`, which also brings the newest
 frame up to now when the tracker predicts (:func:`pbvs_pin.control.tracking.predict_points`,
-which the modular path calls too). A scenario with the IBVS
-baseline or a user-defined objective uses the modular classes.
+which the modular path calls too). A user's own secondary objectives
+(:class:`~pbvs_pin.control.secondary.SecondaryObjective` subclasses) are evaluated in Python
+before the call and enter it as one input, added to the built-in terms of ``Lambda``. A
+scenario with the IBVS baseline uses the modular classes.
 
 The equations' kernels are declared ``inline="always"``: Numba compiles their bodies into the
 fused step, so that no call and no tuple of returned arrays passes between them (on the
@@ -41,12 +43,15 @@ from pbvs_pin.control.compensation import (
 from pbvs_pin.control.ibvs import ClassicIbvs
 from pbvs_pin.control.kinematic import ControlOutput, PassivityController, passivity_law
 from pbvs_pin.control.secondary import (
+    BUILT_IN,
     ArmPosture,
     BaseHeading,
     JointLimitAvoidance,
     ObstacleAvoidance,
+    SecondaryInput,
     SecondaryObjective,
     add_obstacle_terms,
+    contribution_of,
     heading_share,
     heading_term,
     impedance_step,
@@ -86,6 +91,7 @@ def fused_control_step(
     age: float,
     target_velocity: np.ndarray,
     laser: np.ndarray,
+    user_secondary: np.ndarray,
     dt: float,
     params: np.ndarray,
     indices: np.ndarray,
@@ -110,6 +116,8 @@ def fused_control_step(
             (:mod:`~pbvs_pin.control.tracking`); NaN: servo on ``points`` as given.
         target_velocity: ``phat_dot`` [m/s]. Shape (3,).
         laser: ``[d, alpha]`` of the nearest return [m, rad]. Shape (2,).
+        user_secondary: The user's objectives' part of ``Lambda``, added to the built-in
+            terms. Shape (n,).
         dt: Control period [s].
         params: Constant floats, :class:`~pbvs_pin.control.layout.Parameters`.
         indices: Sizes and constant integers, :class:`~pbvs_pin.control.layout.Indices`.
@@ -143,6 +151,8 @@ def fused_control_step(
         d0 = setting.d0 if setting.obstacle else 0.0
         share = heading_share(laser[0], laser[1], d0)
         secondary[1] += share * heading_term(rotation, q, setting.heading_gain)
+    for j in range(n):  # the user's objectives, evaluated before the call
+        secondary[j] += user_secondary[j]
     if not np.isnan(age):  # the prediction: the frame's points moved by phat_dot, eq. (2) at q
         image, image_depths = predict_points(
             world, target_velocity, age, translation, rotation, setting.focal
@@ -215,7 +225,8 @@ class FusedControlStep:
         xi_d: Desired features [px]. Shape (r,).
         controller: The passivity controller (its gains).
         compensator: The dynamic compensator (its loop model, rows, ``K_D``).
-        objectives: Built-in secondary objectives (at most one of each kind).
+        objectives: Secondary objectives: built-in ones (at most one of each kind), computed
+            inside the compiled step, and a user's own, evaluated before it at each step.
     """
 
     def __init__(
@@ -250,7 +261,13 @@ class FusedControlStep:
         p.lower[:], p.upper[:] = model.arm_position_limits()
         p.selection[:] = model.selection
         switched_on = {}
+        self.user_objectives = [o for o in objectives if type(o) not in BUILT_IN]
+        """The user's objectives (a subclass of a built-in one included), evaluated in Python
+        before each compiled call."""
+        self._user_secondary = np.zeros(n)
         for objective in objectives:
+            if type(objective) not in BUILT_IN:
+                continue
             if isinstance(objective, ArmPosture):
                 p.posture_target[:] = objective.target
                 switched_on.update(posture=True, posture_gain=objective.gain)
@@ -317,15 +334,13 @@ class FusedControlStep:
 
     @staticmethod
     def supports(controller: PassivityController, objectives: list[SecondaryObjective]) -> bool:
-        """Whether the fused step reproduces this controller and these objectives."""
-        kinds = [type(objective) for objective in objectives]
-        built_in = all(
-            kind in (ArmPosture, BaseHeading, JointLimitAvoidance, ObstacleAvoidance)
-            for kind in kinds
-        )
-        return (
-            not isinstance(controller, ClassicIbvs) and built_in and len(set(kinds)) == len(kinds)
-        )
+        """Whether the fused step reproduces this controller and these objectives.
+
+        The passivity law, with at most one built-in objective of each kind (any number of a
+        user's own).
+        """
+        kinds = [type(objective) for objective in objectives if type(objective) in BUILT_IN]
+        return not isinstance(controller, ClassicIbvs) and len(set(kinds)) == len(kinds)
 
     def step(
         self,
@@ -365,12 +380,26 @@ class FusedControlStep:
         bias = pin.nonLinearEffects(model, data, q, v_pin)
         gravity = pin.computeGeneralizedGravity(model, data, q)
         world, age = (_NO_WORLD, NAN) if predict_from is None else predict_from
+        if self.user_objectives:
+            self._evaluate_user_objectives(q, placement.rotation, laser, dt)
         fused_control_step(
             jacobian, placement.rotation, placement.translation, mass, bias, gravity, q, v,
-            measurement.points, measurement.depths, world, age, target_velocity, laser, dt,
-            self.params, self.indices, self.state,
+            measurement.points, measurement.depths, world, age, target_velocity, laser,
+            self._user_secondary, dt, self.params, self.indices, self.state,
         )  # fmt: skip
         return self._u, self._v_ref, self._scalars[self._v2]
+
+    def _evaluate_user_objectives(
+        self, q: np.ndarray, rotation: np.ndarray, laser: np.ndarray, dt: float
+    ) -> None:
+        """The user's objectives' part of ``Lambda`` at ``q``, into ``_user_secondary``."""
+        model = self.model
+        theta = arm_angles(q, model.arm_q_indices, model.arm_continuous)
+        state = SecondaryInput(theta, float(laser[0]), float(laser[1]), dt, rotation, q)
+        total = self._user_secondary
+        total[:] = 0.0
+        for objective in self.user_objectives:
+            total += contribution_of(objective, state, model.n_base, model.n)
 
     def restart_derivative(self) -> None:
         """Forget the stored command: the next step does not differentiate it (after a loss)."""

@@ -13,7 +13,7 @@ camera pose; the controller only ever gets the frames and the sensors' readings.
 from __future__ import annotations
 
 import time as wallclock
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pbvs_pin.compile_cache import announce_compiles
+from pbvs_pin.control.secondary import SecondaryObjective, user_objectives
 from pbvs_pin.control.tracking import TargetTracker
 from pbvs_pin.exceptions import RunInterrupted
 from pbvs_pin.model.robot import MobileManipulator
@@ -67,6 +68,7 @@ def simulate(
     progress: bool = False,
     observer: Callable[[Snapshot], None] | None = None,
     robot: MobileManipulator | None = None,
+    objectives: Sequence[SecondaryObjective] = (),
 ) -> RunLog:
     """Run one scenario and return its log.
 
@@ -79,20 +81,25 @@ def simulate(
         observer: Called with a :class:`Snapshot` at every logged instant (a live view).
         robot: A built robot that replaces the scenario's ``[robot]`` table; see
             :func:`pbvs_pin.sim.setup.build`.
+        objectives: The user's own secondary objectives
+            (:class:`~pbvs_pin.control.secondary.SecondaryObjective` subclasses), added to the
+            scenario's in ``Lambda`` (eq. 16); see :class:`pbvs_pin.Controller`.
 
     Returns:
         The run's log (arrays at the log rate) with its setup's key facts.
 
     Raises:
-        WrongType: If ``scenario`` is not a Scenario (e.g. a name: use ``load_scenario``), or
-            ``robot`` not a MobileManipulator.
+        WrongType: If ``scenario`` is not a Scenario (e.g. a name: use ``load_scenario``),
+            ``robot`` not a MobileManipulator, or ``objectives`` not a list of
+            SecondaryObjective.
         RunInterrupted: On Ctrl-C; it carries the run so far, its ``meta["interrupted"]``
             true (None when nothing was recorded yet).
     """
     scenario = as_instance("scenario", scenario, Scenario)
     robot = None if robot is None else as_instance("robot", robot, MobileManipulator)
+    objectives = user_objectives(objectives)
     with announce_compiles(progress):
-        return _simulate(scenario, progress, observer, robot)
+        return _simulate(scenario, progress, observer, robot, objectives)
 
 
 def _simulate(
@@ -100,9 +107,10 @@ def _simulate(
     progress: bool,
     observer: Callable[[Snapshot], None] | None,
     robot: MobileManipulator | None,
+    objectives: tuple[SecondaryObjective, ...],
 ) -> RunLog:
     """:func:`simulate`'s run (the same arguments)."""
-    setup = build(scenario, robot)
+    setup = build(scenario, robot, objectives)
     plant_dt = scenario.simulation.plant_dt
     substeps = max(1, round(1.0 / (scenario.controller.rate * plant_dt)))
     control_dt = substeps * plant_dt

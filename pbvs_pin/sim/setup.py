@@ -9,6 +9,7 @@ visibility at the start) is checked here and reported as a ScenarioError naming 
 from __future__ import annotations
 
 import copy
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -143,7 +144,11 @@ class Setup:
         }
 
 
-def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
+def build(
+    scenario: Scenario,
+    robot: MobileManipulator | None = None,
+    objectives: Sequence[SecondaryObjective] = (),
+) -> Setup:
     """Build the true robot, the controller's model and every block of the loop.
 
     Args:
@@ -153,6 +158,8 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
             plant and the controller's model derive from it as from the table's robot. The
             camera is the scenario's ``[camera]``: a robot with other intrinsics is used
             through a shallow copy that carries them; the robot itself is not modified.
+        objectives: The user's own secondary objectives, added to the scenario's in the
+            controller (:class:`~pbvs_pin.controller.Controller`).
 
     Raises:
         ScenarioError: If a value is invalid for this robot, or the target is not visible
@@ -195,7 +202,9 @@ def build(scenario: Scenario, robot: MobileManipulator | None = None) -> Setup:
         camera, target.diameter, spec.rate, latency, spec.noise_px, rng, faults, fault_rng,
         renderer,
     )  # fmt: skip
-    control = Controller(model, ControllerSettings.from_scenario(scenario), announce=False)
+    control = Controller(
+        model, ControllerSettings.from_scenario(scenario), announce=False, objectives=objectives
+    )
     laser_spec = scenario.laser
     laser = Laser(
         laser_spec.field_of_view, int(laser_spec.beams), laser_spec.max_range,
