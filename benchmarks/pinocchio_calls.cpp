@@ -45,7 +45,7 @@ void control_calls(const void* model_address, void* data_address, long frame, co
   pinocchio::computeGeneralizedGravity(model, data, configuration);
 }
 
-// The plant step's calls (pbvs_pin.plant.Plant.step): CRBA, nonlinear effects, gravity, then
+// The plant step's calls (pbvs_pin.plant.pinocchio_plant.Plant.step): CRBA, nonlinear effects, gravity, then
 // q_next = integrate(q, displacement), shape (nq,).
 void plant_calls(const void* model_address, void* data_address, const double* q,
                  const double* v_pin, const double* displacement, double* q_next) {
@@ -59,7 +59,7 @@ void plant_calls(const void* model_address, void* data_address, const double* q,
   pinocchio::integrate(model, configuration, Vector(displacement, model.nv), next);
 }
 
-// The prediction's call (pbvs_pin.robot.MobileManipulator.camera_placement): forward kinematics
+// The prediction's call (pbvs_pin.model.robot.MobileManipulator.camera_placement): forward kinematics
 // and the camera frame's placement, written as rotation (3, 3) and translation (3,).
 void camera_placement(const void* model_address, void* data_address, long frame, const double* q,
                       double* rotation, double* translation) {

@@ -9,8 +9,8 @@ a temporary source folder beside four generated ones:
   (autodoc + napoleon, Google style);
 - ``internals.rst``: every other module of the package and its members;
 - ``scenario_keys.rst``: every scenario key, generated from the typed sections of
-  :mod:`pbvs_pin.sim.sections` (:func:`~pbvs_pin.sim.sections.keys_of`) and the obstacle
-  classes;
+  :mod:`pbvs_pin.control.tables` and :mod:`pbvs_pin.sim.sections`
+  (:func:`~pbvs_pin.toml_keys.keys_of`) and the obstacle classes;
 - ``sweep_keys.rst``: every key of a sweep spec, from :mod:`pbvs_pin.study.sweep.spec`.
 
 Nothing is fetched: the build works offline.
@@ -117,7 +117,7 @@ def internals_page() -> str:
 
 
 def constraint(spec: Any) -> str:
-    """Type and check of a :func:`~pbvs_pin.sim.sections.key` field, in words."""
+    """Type and check of a :func:`~pbvs_pin.toml_keys.key` field, in words."""
     meta, default = spec.metadata, spec.default
     if meta["choices"]:
         words = "one of " + ", ".join(f"``{c}``" for c in meta["choices"])
@@ -161,7 +161,7 @@ def scenario_page() -> str:
     text = heading("Scenario keys", "=")
     text += (
         "Every key a scenario file may hold, generated from the typed sections of "
-        ":mod:`pbvs_pin.sim.sections`. An absent key takes its default; an unknown key, a "
+        ":mod:`pbvs_pin.control.tables` and :mod:`pbvs_pin.sim.sections`. An absent key takes its default; an unknown key, a "
         "wrong type, a wrong array length or a value of the wrong sign is an error naming the "
         "file and the dotted field.\n\n"
     )

@@ -116,8 +116,10 @@ def __dir__() -> list[str]:
 class _Package(types.ModuleType):
     """The package, whose public names stay what they name when a submodule shares one.
 
-    ``pbvs_pin.model.manipulability`` is the function: importing the submodule of that name (which
-    sets the package's attribute to the module) sets it to the module's function instead.
+    A guard: no public name now shares its name with a submodule of the package itself (the
+    function ``pbvs_pin.manipulability`` once did, before the module moved into ``model``);
+    should one again, importing that submodule (which sets the package's attribute to the
+    module) sets the attribute to the module's function of that name instead.
     """
 
     def __setattr__(self, name: str, value: Any) -> None:

@@ -25,8 +25,8 @@ Inside, in the order of the paper's Fig. 3:
 3. features ``xi`` and ``J``, ``J_o`` of eq. (3), secondary objectives ``Lambda`` (eq. 16),
    the upright row and the loop-gain net (:mod:`pbvs_pin.control.upright`) feed the kinematic
    controller of eq. (34), whose command ``u`` goes through the dynamic compensation of
-   eq. (20), in one compiled call (:mod:`pbvs_pin.control.step`) for the passivity law with
-   the built-in objectives.
+   eq. (20), in one compiled call (:mod:`pbvs_pin.control.step`) for the passivity law; a
+   user's own objectives are evaluated in Python before that call and enter it as one input.
 
 Bad input at run time: a wrong type or shape, a non-finite encoder value, a value beyond the
 physical bounds of :mod:`pbvs_pin.control.bounds` in ``t``, ``q``, ``v`` or
@@ -155,10 +155,10 @@ class Controller:
         robot: The controller's model of the robot; the camera intrinsics are the settings'.
         settings: The settings; the defaults when None.
         announce: Print a line on stderr before compiling the kernels.
-        objectives: The user's own secondary objectives
-            (:class:`~pbvs_pin.control.secondary.SecondaryObjective` subclasses), added to
-            the built-in ones of the settings in ``Lambda`` (eq. 16) at every step; their
-            own state, if any, is theirs to reset (:meth:`reset` keeps them as they are).
+        objectives: The user's own secondary objectives (any ``SecondaryObjective``, also of
+            a built-in kind), added to the settings' in ``Lambda`` (eq. 16): each is called
+            once a step, never while the controller is built; :meth:`reset` keeps them as
+            they are (their own state is theirs to reset).
 
     Attributes:
         model: The controller's model of the robot (with the settings' intrinsics).
@@ -184,7 +184,8 @@ class Controller:
         objectives: Sequence[SecondaryObjective] = (),
     ) -> None:
         robot = as_instance("robot", robot, MobileManipulator)
-        self.user_objectives = user_objectives(objectives)
+        given = user_objectives(objectives)
+        self.user_objectives: tuple[SecondaryObjective, ...] = ()
         settings = ControllerSettings() if settings is None else settings
         settings = as_instance("settings", settings, ControllerSettings)
         camera = settings.camera.intrinsics()
@@ -203,7 +204,10 @@ class Controller:
         self._nq = robot.model.nq
         self.reset()
         with announce_compiles(announce):
-            self._warm_up()
+            self._warm_up()  # without the user's objectives: they see only real steps
+        if given:
+            self.user_objectives = given
+            self.reset()
 
     @classmethod
     def from_scenario(
@@ -239,10 +243,8 @@ class Controller:
         camera latency until a frame arrives."""
         self.law = kinematic_law(settings, model, self.latency)
         self.compensator = compensator(settings, model)
-        self.objectives = [
-            *secondary_objectives(settings, model, self.posture_target),
-            *self.user_objectives,
-        ]
+        built_in = secondary_objectives(settings, model, self.posture_target)
+        self.objectives = [*built_in, *self.user_objectives]
         self._arm_limits = model.arm_position_limits()
         spec = settings.estimator
         self.counts = FaultCounts()
@@ -256,9 +258,10 @@ class Controller:
         )
         self.history.clear()
         self.fused = None
-        if FusedControlStep.supports(self.law, self.objectives):
+        if FusedControlStep.supports(self.law, built_in):
             self.fused = FusedControlStep(
-                model, self.features, self.xi_d, self.law, self.compensator, self.objectives
+                model, self.features, self.xi_d, self.law, self.compensator, built_in,
+                self.user_objectives,
             )
         self.laser = np.array([np.inf, 0.0])
         self._t = -np.inf

@@ -6,7 +6,8 @@ applies the checks in ``__post_init__`` (type, choices, length, sign), and a sec
 :meth:`Section.validate` adds what the package's own blocks refuse. A constructor raises
 :class:`~pbvs_pin.exceptions.GainError` naming the key; :meth:`Section.from_toml` turns it
 into a :class:`~pbvs_pin.exceptions.ScenarioError` that names the file and the dotted field.
-The tables themselves are in :mod:`pbvs_pin.sim.sections`.
+The tables themselves are in :mod:`pbvs_pin.control.tables` (the controller's) and
+:mod:`pbvs_pin.sim.sections` (the simulator's).
 """
 
 from __future__ import annotations

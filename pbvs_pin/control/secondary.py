@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from pbvs_pin.exceptions import GainError, ShapeError, WrongType
+from pbvs_pin.exceptions import GainError, NonFiniteValue, ShapeError, WrongType
 from pbvs_pin.model.joint_angles import arm_difference
 from pbvs_pin.validation import as_instance
 
@@ -377,21 +377,25 @@ class BaseHeading(SecondaryObjective):
 
 
 BUILT_IN = (ArmPosture, BaseHeading, JointLimitAvoidance, ObstacleAvoidance)
-"""The objectives the compiled step computes itself; any other is a user's, evaluated in
-Python at each step (:func:`contribution_of`)."""
+"""The kinds of objective the compiled step computes itself, from the settings; a user's own
+objectives (of any kind) are evaluated in Python at each step (:func:`contribution_of`)."""
 
 
 def contribution_of(
     objective: SecondaryObjective, state: SecondaryInput, n_base: int, n: int
 ) -> np.ndarray:
-    """One objective's part of ``Lambda``, as a float vector of shape (n,).
+    """One objective's part of ``Lambda``, as a finite float vector of shape (n,).
 
     Raises:
         ShapeError: If the objective returned another shape (named by its class).
+        NonFiniteValue: If it returned NaN or infinity (named by its class).
     """
+    name = f"{type(objective).__name__}.contribution"
     part = np.asarray(objective.contribution(state, n_base, n), dtype=float)
     if part.shape != (n,):
-        raise ShapeError(f"{type(objective).__name__}.contribution", (n,), part.shape)
+        raise ShapeError(name, (n,), part.shape)
+    if not np.isfinite(part).all():
+        raise NonFiniteValue(name)
     return part
 
 

@@ -1,7 +1,7 @@
 """What :class:`pbvs_pin.Controller` is built from besides the robot: typed, checked settings.
 
 :class:`ControllerSettings` holds the controller's part of a scenario, the same typed sections
-(:mod:`pbvs_pin.sim.sections`) with the same defaults and checks, so that a controller can be
+(:mod:`pbvs_pin.control.tables`) with the same defaults and checks, so that a controller can be
 built in Python without a scenario file and a scenario's controller is built the same way. The
 functions below fit the settings to a robot (per-dof vectors, ``W``, the objectives, the
 compensator) and name the field at fault when a value does not fit.

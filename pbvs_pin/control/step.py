@@ -225,8 +225,10 @@ class FusedControlStep:
         xi_d: Desired features [px]. Shape (r,).
         controller: The passivity controller (its gains).
         compensator: The dynamic compensator (its loop model, rows, ``K_D``).
-        objectives: Secondary objectives: built-in ones (at most one of each kind), computed
-            inside the compiled step, and a user's own, evaluated before it at each step.
+        objectives: The settings' built-in secondary objectives (at most one of each kind),
+            computed inside the compiled step.
+        user_objectives: The user's own objectives, evaluated in Python before each call
+            (whatever their kind).
     """
 
     def __init__(
@@ -237,6 +239,7 @@ class FusedControlStep:
         controller: PassivityController,
         compensator: DynamicCompensator,
         objectives: list[SecondaryObjective],
+        user_objectives: tuple[SecondaryObjective, ...] = (),
     ) -> None:
         self.model = model
         n, r = model.n, features.size
@@ -261,13 +264,10 @@ class FusedControlStep:
         p.lower[:], p.upper[:] = model.arm_position_limits()
         p.selection[:] = model.selection
         switched_on = {}
-        self.user_objectives = [o for o in objectives if type(o) not in BUILT_IN]
-        """The user's objectives (a subclass of a built-in one included), evaluated in Python
-        before each compiled call."""
+        self.user_objectives = tuple(user_objectives)
+        """The user's objectives, evaluated in Python before each compiled call."""
         self._user_secondary = np.zeros(n)
         for objective in objectives:
-            if type(objective) not in BUILT_IN:
-                continue
             if isinstance(objective, ArmPosture):
                 p.posture_target[:] = objective.target
                 switched_on.update(posture=True, posture_gain=objective.gain)
@@ -334,13 +334,16 @@ class FusedControlStep:
 
     @staticmethod
     def supports(controller: PassivityController, objectives: list[SecondaryObjective]) -> bool:
-        """Whether the fused step reproduces this controller and these objectives.
+        """Whether the fused step reproduces this controller and these built-in objectives.
 
-        The passivity law, with at most one built-in objective of each kind (any number of a
-        user's own).
+        The passivity law, with at most one objective of each built-in kind (a user's own
+        objectives are not among ``objectives``: the step evaluates them in Python).
         """
-        kinds = [type(objective) for objective in objectives if type(objective) in BUILT_IN]
-        return not isinstance(controller, ClassicIbvs) and len(set(kinds)) == len(kinds)
+        kinds = [type(objective) for objective in objectives]
+        built_in = all(kind in BUILT_IN for kind in kinds)
+        return (
+            not isinstance(controller, ClassicIbvs) and built_in and len(set(kinds)) == len(kinds)
+        )
 
     def step(
         self,

@@ -210,7 +210,7 @@ class MobileManipulator:
                 (:mod:`pbvs_pin.model.platform_frame`); base joints recognised, x forward if None.
             arm_root: With or without ``arm_tip``: the arm is the URDF's chain from this link
                 (the URDF's root link when None) down to ``arm_tip``; every other movable joint
-                is locked at neutral (:func:`~pbvs_pin.model.assembly.lock_outside_chain`).
+                is locked at neutral (:func:`~pbvs_pin.model.arm_chain.lock_outside_chain`).
             arm_tip: Last link of the arm; ``camera_frame`` when None. Neither given: every
                 joint between the root and the camera frame moves.
 
@@ -266,7 +266,7 @@ class MobileManipulator:
                 arm, a pedestal); the arm URDF's root link when None. Without ``arm`` (a
                 ``base`` that carries its arm): the arm is the base URDF's chain from this link
                 down to ``arm_tip``, every other movable joint locked at neutral
-                (:func:`~pbvs_pin.model.assembly.lock_outside_chain`).
+                (:func:`~pbvs_pin.model.arm_chain.lock_outside_chain`).
             arm_tip: Last link of the chain; ``camera_link`` when None. Neither given: the
                 whole arm URDF is mounted (without ``arm``: every joint between the root and
                 the camera moves).

@@ -3,10 +3,10 @@
 A scenario names the robot, the camera, the target and its motion, the estimator, the
 controller gains, the secondary objectives, the obstacles, the rates and the model errors.
 A file is parsed once into a frozen :class:`Scenario` of typed sections
-(:mod:`pbvs_pin.sim.sections`), whose constructors check every key: an unknown key, a wrong
-type, a vector of the wrong length or a non-positive gain is a :class:`ScenarioError` that
-names the file and the dotted field. Shipped scenarios live in ``pbvs_pin/scenarios/`` and are
-found by name.
+(:mod:`pbvs_pin.control.tables`, :mod:`pbvs_pin.sim.sections`), whose constructors check every
+key: an unknown key, a wrong type, a vector of the wrong length or a non-positive gain is a
+:class:`ScenarioError` that names the file and the dotted field. Shipped scenarios live in
+``pbvs_pin/scenarios/`` and are found by name.
 
 The raw TOML data (a dict of tables) stays the input format: :meth:`Scenario.with_values`
 overrides dotted fields of :meth:`Scenario.to_toml` and parses again.
@@ -65,7 +65,7 @@ class Scenario(Section):
         duration: Simulated time [s].
         robot, model_error, plant, camera, target, motion, estimator, controller,
             compensation, secondary, laser, platform, simulation, sensing: The tables, see
-            :mod:`pbvs_pin.sim.sections`.
+            :mod:`pbvs_pin.control.tables` and :mod:`pbvs_pin.sim.sections`.
         obstacles: The ``[[obstacles]]`` tables as obstacles.
     """
 

@@ -15,14 +15,14 @@ Where each equation lives:
 module                     contents
 =========================  =====================================================================
 :mod:`.signals`            ``K_c(e) e`` of eq. (8); trapezoidal integrals; the check tolerance
-:mod:`.robustness`         eqs. (31)-(42): ``lambda``, ``lambda'``, ``k_min``, condition (31),
+:mod:`.motion_bounds`      eqs. (31)-(42): ``lambda``, ``lambda'``, ``k_min``, condition (31),
                            the choice of t1, the ball (38), the ultimate bound (39), the L2
                            gain (42)
 :mod:`.passivity`          eqs. (9) and (13)/(14): the passivity inequalities over the run
 :mod:`.analyze`            :func:`analyze_log`: all of the above from one log, as a JSON dict
-:mod:`.report`             :func:`analyze_run`: a saved run to ``analysis.json`` and
+:mod:`.run_report`         :func:`analyze_run`: a saved run to ``analysis.json`` and
                            ``analysis.md``
-:mod:`.plots`              ``bound.png`` (39), ``gamma.png`` (31)/(38), ``storage.png`` (9)/(14)
+:mod:`.bound_plots`        ``bound.png`` (39), ``gamma.png`` (31)/(38), ``storage.png`` (9)/(14)
 =========================  =====================================================================
 """
 
