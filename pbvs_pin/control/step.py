@@ -51,13 +51,13 @@ from pbvs_pin.control.secondary import (
     SecondaryInput,
     SecondaryObjective,
     add_obstacle_terms,
-    contribution_of,
     heading_share,
     heading_term,
     impedance_step,
     joint_limit_term,
     obstacle_force,
     posture_term,
+    secondary_vector,
 )
 from pbvs_pin.control.tracking import predict_points
 from pbvs_pin.control.upright import Safety, upright_row
@@ -399,10 +399,9 @@ class FusedControlStep:
         model = self.model
         theta = arm_angles(q, model.arm_q_indices, model.arm_continuous)
         state = SecondaryInput(theta, float(laser[0]), float(laser[1]), dt, rotation, q)
-        total = self._user_secondary
-        total[:] = 0.0
-        for objective in self.user_objectives:
-            total += contribution_of(objective, state, model.n_base, model.n)
+        self._user_secondary[:] = secondary_vector(
+            list(self.user_objectives), state, model.n_base, model.n
+        )
 
     def restart_derivative(self) -> None:
         """Forget the stored command: the next step does not differentiate it (after a loss)."""
