@@ -88,16 +88,22 @@ def test_ctrl_c_once_the_command_is_done_is_ignored(tmp_path):
 
 
 def test_ctrl_c_while_the_modules_load_is_one_line(tmp_path):
-    """A real SIGINT 1 s after the start, while the modules load or the run starts (on this
-    machine the simulation starts 2.4 s in)."""
+    """A real SIGINT 0.5 s after the start, while the modules load or the run starts.
+
+    Where it lands depends on the machine (with Pinocchio 4 the 0.3 s run can already be under
+    way): whatever the stage, the command says one line, and the files agree with it.
+    """
     process = _run(tmp_path)
     try:
-        process.wait(timeout=1.0)
+        process.wait(timeout=0.5)
     except subprocess.TimeoutExpired:
         process.send_signal(signal.SIGINT)
     line = _said(process)
-    assert line.startswith("pbvs-pin: interrupted ") and "nothing was" in line
-    assert not (tmp_path / "out").exists()
+    assert line.startswith("pbvs-pin: interrupted ")
+    if "nothing was" in line:  # while loading or starting
+        assert not (tmp_path / "out").exists()
+    else:  # the run had started: what the line says was kept is there
+        assert (tmp_path / "out" / "log.npz").is_file()
 
 
 def test_ctrl_c_that_a_library_swallows_while_starting_still_ends_the_run():

@@ -234,8 +234,8 @@ def test_equations_are_typeset_offline(site):
 
 
 QUICK_START = (
-    "pip install . && pbvs-pin reproduce --out results\n"
-    "pip install '.[test,ros]' && ruff check pbvs_pin tests examples && python -m pytest -q -n auto --dist loadfile\n"
+    "pip install -c constraints.txt . && pbvs-pin reproduce --out results\n"
+    "pip install -c constraints.txt '.[test,ros]' && ruff check pbvs_pin tests examples && python -m pytest -q -n auto --dist loadfile\n"
 )
 
 
