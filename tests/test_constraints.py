@@ -31,7 +31,8 @@ def pinned() -> dict[str, str]:
 
 def test_the_constraints_pin_the_numeric_stack_and_every_runtime_dependency():
     pins = pinned()
-    for name in NUMERIC_STACK + ("example-robot-data-loaders", "yourdfpy", "opencv-python-headless"):
+    runtime = ("example-robot-data-loaders", "yourdfpy", "opencv-python-headless")
+    for name in (*NUMERIC_STACK, *runtime):
         assert name in pins, f"constraints.txt does not pin {name}"
 
 
