@@ -159,7 +159,7 @@ class EstimatorSection(Section):
     )
     alpha: float = key(0.5, "Position gain of the alpha-beta filter, 0 < alpha <= 1.")
     beta: float = key(0.1, "Velocity gain of the alpha-beta filter, 0 < beta < 4 - 2 alpha.")
-    process_noise: float = key(0.0, NOISE_ADAPTIVE, sign=NON_NEGATIVE)
+    process_noise: float = key(0.03, NOISE_ADAPTIVE, sign=NON_NEGATIVE)
     predict: bool = key(False, "Bring each frame up to now along eq. (3) (control.tracking).")
     hold: float = key(0.0, "Servo on predictions this long after a loss [s].", sign=NON_NEGATIVE)
     smoothing: float = key(1.0, "Weight of a frame against its prediction, <= 1.", sign=POSITIVE)

@@ -11,9 +11,9 @@ The gains can be given directly or from Kalata's tracking index
 ``Lambda = sigma_w T^2 / sigma_n`` (ref. [33]). :class:`AdaptiveAlphaBetaFilter` measures
 ``sigma_n`` online, per world axis, and sets the gains from it (issue 31: 4 px of pixel noise
 is 2.4 cm of depth noise at 0.5 m, which the fixed gains 0.5, 0.1 pass to the velocity as
-about 0.08 m/s; ``estimator.process_noise`` > 0 selects it (0 by default: docs
-``faults.md``). A manoeuvre detector raises its gains back toward the stated ones when the
-target stops or turns.
+about 0.08 m/s; ``estimator.process_noise`` > 0 selects it, 0.03 m/s^2 by default, and 0
+keeps the paper's fixed gains: docs ``faults.md``). A manoeuvre detector raises its gains back
+toward the stated ones when the target stops or turns.
 
 The estimated speed is clamped to ``max_speed`` (:data:`MAX_TARGET_SPEED` by default): a
 measurement that slipped past the controller's gate, or two frames a microsecond apart, move
