@@ -62,8 +62,8 @@ from pbvs_pin.control.encoders import TIME_TOLERANCE, EncoderHistory
 from pbvs_pin.control.gating import FaultCounts, InnovationGate
 from pbvs_pin.control.kinematic import ControlOutput
 from pbvs_pin.control.secondary import (
-    SecondaryInput,
     SecondaryObjective,
+    secondary_input,
     secondary_vector,
     user_objectives,
 )
@@ -80,7 +80,6 @@ from pbvs_pin.control.tracking import TargetTracker
 from pbvs_pin.control.upright import upright_row
 from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
 from pbvs_pin.model.camera import MIN_DEPTH
-from pbvs_pin.model.joint_angles import arm_angles
 from pbvs_pin.model.robot import UNIT_TOLERANCE, MobileManipulator
 from pbvs_pin.perception.camera_frame import CameraFrame
 from pbvs_pin.perception.estimation import velocity_filter
@@ -262,7 +261,7 @@ class Controller:
             self.fused = FusedControlStep(
                 model, self.features, self.xi_d, self.law, self.compensator, built_in,
                 self.user_objectives,
-            )
+            )  # fmt: skip
         self.laser = np.array([np.inf, 0.0])
         self._t = -np.inf
         self._previous_root: tuple[float, float, float, float] | None = None
@@ -539,10 +538,10 @@ class Controller:
     ) -> tuple[ControlOutput, tuple[np.ndarray, np.ndarray] | None]:
         """Kinematic controller on the measurement; zero command when there is none."""
         model = self.model
-        theta = arm_angles(q, model.arm_q_indices, model.arm_continuous)  # q checked by step
-        camera_jacobian = model.camera_jacobian_unchecked(q)
+        camera_jacobian = model.camera_jacobian_unchecked(q)  # q checked by step
         rotation = model.data.oMf[model.camera_frame_id].rotation
-        state = SecondaryInput(theta, self.laser[0], self.laser[1], dt, rotation, q)
+        state = secondary_input(model, q, self.laser, dt, rotation)
+        theta = state.arm_positions
         secondary = secondary_vector(self.objectives, state, model.n_base, model.n)
         if measurement is None:
             return self.law.zero_output(self.features.size), None

@@ -12,14 +12,19 @@ one on or off.
 from __future__ import annotations
 
 import abc
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from pbvs_pin.exceptions import GainError, NonFiniteValue, ShapeError, WrongType
-from pbvs_pin.model.joint_angles import arm_difference
+from pbvs_pin.model.joint_angles import arm_angles, arm_difference
 from pbvs_pin.validation import as_instance
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from pbvs_pin.model.robot import MobileManipulator
 
 
 @njit(cache=True, inline="always")
@@ -226,6 +231,26 @@ class SecondaryInput:
     q: np.ndarray | None = None
 
 
+def secondary_input(
+    model: MobileManipulator,
+    q: np.ndarray,
+    laser: np.ndarray,
+    dt: float,
+    camera_rotation: np.ndarray,
+) -> SecondaryInput:
+    """What the objectives see at ``q``: the arm's angles and the laser's nearest return.
+
+    Args:
+        model: The controller's robot.
+        q: Configuration, already checked. Shape (nq,).
+        laser: ``[d, alpha]``, the nearest return's range [m] and angle [rad]. Shape (2,).
+        dt: Time since the previous control step [s].
+        camera_rotation: ``wRc``. Shape (3, 3).
+    """
+    theta = arm_angles(q, model.arm_q_indices, model.arm_continuous)
+    return SecondaryInput(theta, float(laser[0]), float(laser[1]), dt, camera_rotation, q)
+
+
 class SecondaryObjective(abc.ABC):
     """One term of ``Lambda``."""
 
@@ -400,7 +425,7 @@ def contribution_of(
 
 
 def secondary_vector(
-    objectives: list[SecondaryObjective], state: SecondaryInput, n_base: int, n: int
+    objectives: Sequence[SecondaryObjective], state: SecondaryInput, n_base: int, n: int
 ) -> np.ndarray:
     """``Lambda``: the sum of every objective's contribution. Shape (n,)."""
     total = np.zeros(n)

@@ -48,7 +48,6 @@ from pbvs_pin.control.secondary import (
     BaseHeading,
     JointLimitAvoidance,
     ObstacleAvoidance,
-    SecondaryInput,
     SecondaryObjective,
     add_obstacle_terms,
     heading_share,
@@ -57,6 +56,7 @@ from pbvs_pin.control.secondary import (
     joint_limit_term,
     obstacle_force,
     posture_term,
+    secondary_input,
     secondary_vector,
 )
 from pbvs_pin.control.tracking import predict_points
@@ -397,10 +397,9 @@ class FusedControlStep:
     ) -> None:
         """The user's objectives' part of ``Lambda`` at ``q``, into ``_user_secondary``."""
         model = self.model
-        theta = arm_angles(q, model.arm_q_indices, model.arm_continuous)
-        state = SecondaryInput(theta, float(laser[0]), float(laser[1]), dt, rotation, q)
+        state = secondary_input(model, q, laser, dt, rotation)
         self._user_secondary[:] = secondary_vector(
-            list(self.user_objectives), state, model.n_base, model.n
+            self.user_objectives, state, model.n_base, model.n
         )
 
     def restart_derivative(self) -> None:
