@@ -84,11 +84,13 @@ def test_experiment1_holds_the_target_across_processes(node, ros_env, tmp_path):
 
     The bound: over [3, 6] s, max |xi - xi_d| (true projection, in the simulator) < 8 px,
     Experiment 1's rule (the report's, on the last 5 s). ``simulate()`` on the same scenario
-    (rendered camera, Pinocchio plant, 6 s) gives 0.87 px there; across processes 2.0 and
-    3.2 px were measured in two runs. The difference: the node's step reads the newest
-    joint_states/odom, which may be those of the period before (which one arrives first
-    varies from run to run), and each command acts one DDS hop later; the frames, detector
-    and controller are the same. A lost target or an oscillation breaks the bound.
+    (rendered camera, Pinocchio plant, 6 s) gives 0.87 px there; across processes 1.20 px in
+    each of six runs (docs/ros2.md). A lost target or an oscillation breaks the bound.
+
+    Every step but the first is answered in lockstep (599 of 600 in every run since the
+    transport of ``pbvs_pin/ros/fastdds.xml``). With Fast DDS's defaults, messages lost beside
+    the images were held until resent, and 93-96 % of the steps were answered: this count
+    fails when that comes back.
     """
     summary_path = tmp_path / "summary.json"
     started = time.perf_counter()
@@ -102,7 +104,7 @@ def test_experiment1_holds_the_target_across_processes(node, ros_env, tmp_path):
     summary = json.loads(summary_path.read_text())
     t, error = np.array(summary["t"]), np.abs(np.array(summary["error"]))
     steps = round(DURATION / PERIOD)
-    assert summary["fresh_commands"] >= 0.95 * steps, summary["fresh_commands"]
+    assert summary["fresh_commands"] >= 0.99 * steps, summary["fresh_commands"]
     assert error[0].max() > 100.0  # the target starts far from xi_d (150 px): it was servoed
     held = error[t >= WINDOW_START].max()
     assert held < ERROR_BOUND, f"max |e| over [3, 6] s: {held:.2f} px"
@@ -180,16 +182,15 @@ def test_a_holonomic_robot_holds_experiment1_across_processes(ros_env, tmp_path)
     rendered camera, node and simulated robot as two processes, Experiment 1's rule over
     [3, 6] s (the report's window shortened as above).
 
-    The node waits for readings stamped with its step's time (``wait_for_readings``): measured
-    3.37, 3.75 and 3.75 px in three runs, 3.03 px for ``simulate()`` on the same scenario. Without
-    it the step may read the period before's readings, and three runs gave 5.7, 6.2 and 8.2 px,
-    the last past the rule.
+    The node waits for readings stamped with its step's time (``wait_for_readings``): 3.33 px
+    in each of three runs, 3.03 px for ``simulate()`` on the same scenario; without the wait,
+    3.33 px too now that the transport loses nothing (docs/ros2.md).
     """
     robot = str(REPO_ROOT / "robots" / "vega_1.toml")
     summary = _own_node_run(_domain(ros_env, 100), robot, ("experiment1", "--robot", robot),
                             DURATION, tmp_path / "summary.json")  # fmt: skip
     t, error = np.array(summary["t"]), np.abs(np.array(summary["error"]))
-    assert summary["fresh_commands"] >= 0.9 * round(DURATION / PERIOD)
+    assert summary["fresh_commands"] >= 0.99 * round(DURATION / PERIOD)
     assert error[0].max() > 100.0
     held = error[t >= WINDOW_START].max()
     assert held < ERROR_BOUND, f"max |e| over [3, 6] s: {held:.2f} px"
@@ -205,15 +206,14 @@ def test_experiment2_holds_the_target_past_the_obstacle_across_processes(ros_env
     ``theta_d`` over the last 5 s) needs the whole 60 s (the arm is 1.04 rad away at 20 s in
     ``simulate()``, 0.065 rad at 40 s) and is not checked here.
 
-    With ``wait_for_readings``, three runs: 1.41, 1.54 and 1.41 px over [7, 20] s, clearance
-    0.0648, 0.0646 and 0.0643 m; ``simulate()`` on the same 20 s (rendered camera): 1.17 px and
-    0.0647 m. Without it, 2.61 and 8.1 px were measured over [7, 12] s (docs/ros2.md).
+    With ``wait_for_readings``, three runs: 1.39 px over [7, 20] s and clearance 0.0650 m in
+    each; ``simulate()`` on the same 20 s (rendered camera): 1.17 px and 0.0647 m.
     """
     duration, window = 20.0, 7.0
     summary = _own_node_run(_domain(ros_env, 110), "experiment2", ("experiment2",), duration,
                             tmp_path / "summary.json")  # fmt: skip
     t, error = np.array(summary["t"]), np.abs(np.array(summary["error"]))
-    assert summary["fresh_commands"] >= 0.9 * round(duration / PERIOD)
+    assert summary["fresh_commands"] >= 0.99 * round(duration / PERIOD)
     held = error[t >= window].max()
     assert held < ERROR_BOUND, f"max |e| over [7, 20] s: {held:.2f} px"
     clearance = np.array(summary["clearance"], dtype=float)

@@ -55,13 +55,12 @@ from pbvs_pin.sim.scenario import Scenario
 SENSOR_TIMEOUT = 0.05
 """Default ``sensor_timeout`` [s]: ``joint_states`` or ``odom`` older than this is stale."""
 
-WAKE = 0.005
+WAKE = 0.05
 """Longest wait [s] of wall-clock time inside ROS, so that SIGINT and SIGTERM are handled.
 
-It also bounds how late a step on ``/clock`` runs: on sim time the step's timer is often
-found ready only when the executor wakes (not diagnosed further). Measured on the suite's
-Experiment 2 across processes (2 000 steps in lockstep): 147 s of wall-clock time with 0.05 s,
-109 s with 0.005 s; the price is a wake-up every 5 ms while idle."""
+It does not pace the steps: the step's timer on ``/clock`` wakes the executor. (Experiment 2
+across processes took the same 3.7-4.0 s for 6 simulated seconds with 0.005, 0.05 and 0.5 s.
+An earlier slowness blamed on this wait was messages lost on the transport: ``fastdds.xml``.)"""
 
 STAMP_TOLERANCE = 1e-6
 """Difference [s] below which a reading's stamp is the clock's time (seconds and
