@@ -100,7 +100,7 @@ def test_the_arm_carries_the_centre_of_mass_to_the_wheels_and_the_robot_tips(run
     assert margin[0] >= HomeCriteria().com_margin - 1e-3, margin[0]
     lost = summary["target_lost_first_s"]
     assert lost is not None and lost > TIP_AFTER_S, lost
-    assert summary["max_abs_error_final_window_px"] > HOLD_PX
+    assert not summary["max_abs_error_final_window_px"] <= HOLD_PX  # NaN: fallen, no finite error
     # near static: the centre of mass has reached the support's edge before the target is lost
     assert margin[t < lost].min() < EDGE_M, margin[t < lost].min()
 

@@ -17,7 +17,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from pbvs_pin.plant.mujoco_plant import build_spec
+from pbvs_pin.plant.mujoco_spec import build_spec
 from pbvs_pin.plant.mujoco_stability import contact_polygon
 from pbvs_pin.plant.mujoco_wheels import KEY_WHEELS
 from pbvs_pin.sim.loop import simulate

@@ -20,10 +20,12 @@ of its own gravity load. The platform command ``[u, omega]`` (clipped to the ser
 limits) passes the first-order lags of the platform's time constants in
 :class:`pbvs_pin.model.servo.ServoModel` (0.26 s and 0.23 s, a Pioneer's identified response), as a
 platform's controller shapes its speed commands; so the platform responds as on the Pinocchio
-plant and as the dynamic compensation (eq. 20) assumes. (Without the lags the wheels' own
-0.05 s servos drove the platform five times faster than eq. 20's model, which then
+plant and as the dynamic compensation (eq. 20) assumes. (Without the lags the wheels' servos
+of the time, 0.05 s, drove the platform five times faster than eq. 20's model, which then
 over-compensated: TIAGo's Experiment 2 oscillated at 9.5 px RMS above 0.5 Hz, 1.8 px with
-compensation off.) The lagged command becomes wheel speeds ``w_l = (u - omega b / 2) / r``,
+compensation off.) The wheel servos are stiff enough that the platform's response is those
+lags (:data:`WHEEL_TIME_CONSTANT`, :data:`SKID_STEER_WHEEL_TIME_CONSTANT` say how it was
+measured). The lagged command becomes wheel speeds ``w_l = (u - omega b / 2) / r``,
 ``w_r = (u + omega b / 2) / r``
 (wheel radius ``r``, each clipped at the wheels' speed limit), the inverse of
 ``u = r (w_l + w_r) / 2``, ``omega = r (w_r - w_l) / b``, with ``b`` the drive's *effective*
@@ -37,53 +39,55 @@ skid-steer platform closes a yaw-rate loop on its gyro (:data:`YAW_INTEGRAL_TIME
 Pioneer 3-AT's controller can: the yaw rate the wheels are asked for is
 ``omega + e_g / T_g``, ``e_g = \int (omega - omega_gyro) dt``, clamped at the yaw-rate limit.
 
-Contacts: only platform geometry meets the ground. Drive wheels have Coulomb friction
-:data:`WHEEL_FRICTION` (condim 3; MuJoCo's default pyramidal cone and Newton solver, 2x faster
-than the elliptic cone here); the platform's other primitive collision shapes (chassis, ball
-casters) are frictionless supports; arm geometry and meshes are dropped (visual
-meshes are optional, inertias come from the URDF's ``<inertial>`` only). The step is
-``implicitfast``, so servo gains and damping are integrated implicitly and stiff servos are
+Contacts (:mod:`pbvs_pin.plant.mujoco_spec` builds them): only platform geometry meets the
+ground. Drive wheels have Coulomb friction :data:`~pbvs_pin.plant.mujoco_spec.WHEEL_FRICTION`
+(condim 3; MuJoCo's default pyramidal cone and Newton solver, 2x faster than the elliptic cone
+here); the platform's other primitive collision shapes (chassis, ball casters) are frictionless
+supports; arm geometry and meshes are dropped (visual meshes are optional, inertias come from
+the URDF's ``<inertial>`` only). The step is ``implicitfast``, so servo gains and damping are
+integrated implicitly and stiff servos are
 stable at a 1 ms step.
 """
 
 from __future__ import annotations
 
-import io
 from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
-import yourdfpy
-from lxml import etree
 
-from pbvs_pin.exceptions import DriveAxleNotFound, GainError, UrdfError
-from pbvs_pin.model import frames
-from pbvs_pin.model.assembly import DriveAxle, UrdfSource, find_drive_axle
-from pbvs_pin.model.base import DifferentialDrive, Omnidirectional
+from pbvs_pin.exceptions import GainError, UrdfError
 from pbvs_pin.plant.mujoco_kernels import arm_gravity_load, servo_commands, true_state
 from pbvs_pin.plant.mujoco_payload import UnknownPayload
+from pbvs_pin.plant.mujoco_spec import PLANAR_JOINTS, WHEEL_FRICTION, build_spec
 from pbvs_pin.plant.mujoco_stability import warn_if_tipping
-from pbvs_pin.plant.mujoco_wheels import add_key_wheels
 
 if TYPE_CHECKING:
     from pbvs_pin.model.robot import MobileManipulator
     from pbvs_pin.model.servo import ServoModel
 
-WHEEL_FRICTION = 1.0
-"""Sliding friction coefficient of a drive wheel on the floor (rubber on concrete)."""
-
-WHEEL_TIME_CONSTANT = 0.05
+WHEEL_TIME_CONSTANT = 0.02
 """Time constant [s] of the wheel servos' proportional action on the forward speed, wheels
-not slipping: ``k_w = m r^2 / (N tau_w)`` for a robot of mass ``m`` on ``N`` drive wheels."""
+not slipping: ``k_w = m r^2 / (N tau_w)`` for a robot of mass ``m`` on ``N`` drive wheels; for
+one wheel per side, chosen so that the yaw rate follows the controller's platform lag
+(``docs/zoo.rst`` has the open-loop measurements; ``tests/test_mujoco_plant.py`` checks it)."""
+
+SKID_STEER_WHEEL_TIME_CONSTANT = 0.005
+"""``tau_w`` [s] of a skid-steer platform's wheel servos (``track_factor`` above 1): to turn,
+its wheels scrub sideways against Coulomb friction, which 0.05 s servos overcame only after a
+large speed error (the yaw rate lagged the model's by 125 degrees at 0.7 Hz, ``docs/zoo.rst``)."""
 
 WHEEL_INTEGRAL_TIME = 0.1
-r"""Integral time ``T_i`` [s] of the wheel servos: with :data:`WHEEL_TIME_CONSTANT` the forward
-loop ``m r^2 / N \ddot e + k_w \dot e + k_w / T_i e = 0`` has damping ratio
-``sqrt(T_i / tau_w) / 2 = 0.71``."""
+r"""Integral time ``T_i`` [s] of the wheel servos: the forward loop
+``m r^2 / N \ddot e + k_w \dot e + k_w / T_i e = 0`` has damping ratio ``sqrt(T_i / tau_w) / 2``
+(1.1 with :data:`WHEEL_TIME_CONSTANT`, 1.6 with the skid-steer pair)."""
 
-YAW_INTEGRAL_TIME = 0.1
+SKID_STEER_WHEEL_INTEGRAL_TIME = 0.05
+"""``T_i`` [s] of a skid-steer platform's wheel servos."""
+
+YAW_INTEGRAL_TIME = 0.05
 r"""Integral time ``T_g`` [s] of the platform's yaw-rate loop on its gyro: the yaw rate that
 the wheels are asked for is ``omega + e_g / T_g`` with ``e_g = \int (omega - omega_gyro) dt``.
 A skid-steer platform whose wheels reach their speeds turns at ``rho omega`` with ``rho < 1``
@@ -95,201 +99,6 @@ HOLONOMIC_TIME_CONSTANT = 0.01
 """Time constant [s] of a holonomic base's joint servos (its slides': mass over gain; its yaw's:
 inertia over gain): fast beside the platform's lags of :class:`pbvs_pin.model.servo.ServoModel`,
 so that the base responds as the Pinocchio plant's does."""
-
-GROUND = "ground"
-"""Name of the ground plane geom."""
-
-_CONTACT_AFFINITY = 1
-"""Robot geoms have ``conaffinity`` 1 and ``contype`` 0, the ground the reverse: robot geoms
-meet the ground but never each other."""
-
-
-WORLD_LINK = "world_link"
-"""What a link named ``world`` (an arm's root in example-robot-data's UR URDFs) is renamed."""
-
-
-def _strip_geometry(xml: str | bytes) -> bytes:
-    """The URDF without ``<visual>`` elements and mesh ``<collision>`` elements.
-
-    A link named ``world`` is renamed :data:`WORLD_LINK`: MuJoCo's URDF importer would merge
-    it, and the arm hanging from it, into its fixed world body.
-    """
-    root = etree.fromstring(xml.encode() if isinstance(xml, str) else xml)
-    for element in root.findall("link/visual"):
-        element.getparent().remove(element)
-    for element in root.findall("link/collision"):
-        if element.find("geometry/mesh") is not None:
-            element.getparent().remove(element)
-    for path, key in (("link", "name"), ("joint/parent", "link"), ("joint/child", "link")):
-        for element in root.findall(path):
-            if element.get(key) == "world":
-                element.set(key, WORLD_LINK)
-    return etree.tostring(root)
-
-
-def _drive_axle(xml: bytes, label: str) -> DriveAxle:
-    """The drive axle of an assembled URDF (whose root is the drive footprint)."""
-    urdf = yourdfpy.URDF.load(
-        io.BytesIO(xml),
-        build_scene_graph=False,
-        load_meshes=False,
-        load_collision_meshes=False,
-        filename_handler=yourdfpy.filename_handler_null,
-    )
-    return find_drive_axle(UrdfSource(urdf.robot, label, ()))
-
-
-def _static_descendants(body: mujoco.MjsBody) -> list[mujoco.MjsBody]:
-    """``body`` and every body welded to it (reached without crossing a joint)."""
-    found, frontier = [body], [body]
-    while frontier:
-        for child in frontier.pop().bodies:
-            if not child.joints:
-                found.append(child)
-                frontier.append(child)
-    return found
-
-
-def _repair_inertia(body: mujoco.MjsBody) -> None:
-    """Replace a full inertia that is not positive definite by its diagonal's magnitudes.
-
-    MuJoCo refuses such an inertia, Pinocchio does not: TIAGo's antenna links (1e-6 kg) have
-    products of inertia larger than their moments. The change is far below the arm's and the
-    platform's inertias (the cross-engine test holds to 1e-6).
-    """
-    full = np.asarray(body.fullinertia, dtype=float)
-    if np.isnan(full[0]):
-        return
-    xx, yy, zz, xy, xz, yz = full
-    matrix = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-    if np.linalg.eigvalsh(matrix)[0] <= 0.0:
-        body.fullinertia = [abs(xx), abs(yy), abs(zz), 0.0, 0.0, 0.0]
-
-
-def build_spec(
-    robot: MobileManipulator, friction: float = WHEEL_FRICTION
-) -> tuple[mujoco.MjSpec, DriveAxle | None]:
-    """MuJoCo description of ``robot`` on a ground plane, without actuators.
-
-    Args:
-        robot: A differential-drive or omnidirectional robot built from a URDF
-            (``robot.urdf_xml`` set).
-        friction: Sliding friction coefficient of the drive wheels on the ground.
-
-    Returns:
-        The spec (free joint on the drive footprint, ground, contact geometry; or a holonomic
-        base's planar joints, :func:`_holonomic_spec`) and the drive axle found in the URDF, or
-        built from the drive keys if it has none (:mod:`pbvs_pin.plant.mujoco_wheels`; None:
-        holonomic).
-
-    Raises:
-        UrdfError: If the robot has no URDF, has a fixed base, or MuJoCo rejects it.
-        GainError: If ``friction`` is not positive.
-    """
-    if robot.urdf_xml is None or not isinstance(robot.base, DifferentialDrive | Omnidirectional):
-        raise UrdfError(
-            robot.source,
-            "MuJoCo plant: expected a differential-drive or omnidirectional robot built from a "
-            "URDF (MobileManipulator.from_urdf or assemble)",
-        )
-    if not (np.isfinite(friction) and friction > 0):
-        raise GainError(f"MuJoCo plant: expected wheel friction > 0, got {friction}")
-    xml = _strip_geometry(robot.urdf_xml)
-    if isinstance(robot.base, Omnidirectional):
-        return _holonomic_spec(robot, xml), None
-    spec = _read_spec(xml, robot.source)
-    try:
-        axle = _drive_axle(xml, robot.source)
-        root = spec.body(frames.DRIVE_FOOTPRINT)
-    except DriveAxleNotFound:  # the drive keys gave the drive: wheels built from them
-        root = spec.worldbody.first_body()
-        supported = any(body.geoms for body in _static_descendants(root))
-        axle = add_key_wheels(spec, root, robot.base, supported)
-    root.add_freejoint(name=frames.DRIVE_FOOTPRINT)
-    platform = {body.name for body in _static_descendants(root)}
-    wheels = {spec.joint(name).parent.name for name in axle.wheel_joints}
-    _lock_other_joints(spec, robot, (frames.DRIVE_FOOTPRINT, *axle.wheel_joints))
-    for body in spec.bodies:
-        for geom in body.geoms:
-            if body.name in wheels or (
-                body.name in platform and geom.type != mujoco.mjtGeom.mjGEOM_MESH
-            ):
-                geom.contype, geom.conaffinity = 0, _CONTACT_AFFINITY
-                geom.condim = 3 if body.name in wheels else 1
-                geom.friction = [friction, 0.0, 0.0] if body.name in wheels else [0, 0, 0]
-            else:
-                spec.delete(geom)
-    for name in wheels:
-        if not spec.body(name).geoms:
-            raise UrdfError(robot.source, f"wheel link {name!r}: expected a cylinder or sphere")
-    spec.worldbody.add_geom(
-        name=GROUND,
-        type=mujoco.mjtGeom.mjGEOM_PLANE,
-        size=[0.0, 0.0, 1.0],
-        contype=_CONTACT_AFFINITY,
-        conaffinity=0,
-        condim=1,
-        friction=[0.0, 0.0, 0.0],
-    )
-    return spec, axle
-
-
-PLANAR_JOINTS = (
-    ("base_x", mujoco.mjtJoint.mjJNT_SLIDE, (1.0, 0.0, 0.0)),
-    ("base_y", mujoco.mjtJoint.mjJNT_SLIDE, (0.0, 1.0, 0.0)),
-    ("base_yaw", mujoco.mjtJoint.mjJNT_HINGE, (0.0, 0.0, 1.0)),
-)
-"""A holonomic base's joints in MuJoCo: name, type, axis (the world's, at the start)."""
-
-
-def _read_spec(xml: bytes, label: str) -> mujoco.MjSpec:
-    """MuJoCo's spec of a stripped URDF, inertias from ``<inertial>`` only (repaired)."""
-    try:
-        spec = mujoco.MjSpec.from_string(xml.decode())
-    except ValueError as err:
-        raise UrdfError(label, f"MuJoCo cannot read the URDF: {err}") from err
-    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
-    spec.compiler.fusestatic = True
-    for body in spec.bodies:
-        _repair_inertia(body)
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    return spec
-
-
-def _lock_other_joints(spec: mujoco.MjSpec, robot: MobileManipulator, keep: tuple) -> None:
-    """Weld every joint the controller's model locks: a head, fingers, another arm.
-
-    Pinocchio's reduced model holds them at their neutral position (zero, the URDF's joint
-    origin), which is where a joint removed from the URDF's body leaves its child.
-
-    Args:
-        spec: The spec, edited.
-        robot: The controller's model, whose arm joints stay.
-        keep: Other joints that stay (the root's, the drive wheels').
-    """
-    kept = {*robot.arm_joint_names, *keep}
-    for joint in list(spec.joints):
-        if joint.name not in kept:
-            spec.delete(joint)
-
-
-def _holonomic_spec(robot: MobileManipulator, xml: bytes) -> mujoco.MjSpec:
-    """A holonomic base: the platform's root body on planar joints, no contact geometry.
-
-    Mecanum, omni and swerve wheels are not simulated: the root body slides along the world's
-    x and y and turns about z (:data:`PLANAR_JOINTS`), each joint driven by a velocity servo
-    (:class:`MujocoPlant`). The arm and platform keep their masses, inertias and couplings.
-    """
-    spec = _read_spec(xml, robot.source)
-    _lock_other_joints(spec, robot, ())
-    root = spec.worldbody.first_body()
-    for name, kind, axis in PLANAR_JOINTS:
-        root.add_joint(name=name, type=kind, axis=list(axis))
-    for body in spec.bodies:
-        for geom in body.geoms:
-            spec.delete(geom)
-    return spec
-
 
 class MujocoPlant:
     """The robot simulated by MuJoCo, with the Pinocchio plant's interface.
@@ -309,8 +118,11 @@ class MujocoPlant:
         dt: Integration step [s].
         friction: Sliding friction coefficient of the drive wheels on the ground.
         wheel_time_constant: Forward-speed time constant ``tau_w`` [s] of the wheel servos'
-            proportional action, wheels not slipping, on the URDF's masses.
-        wheel_integral_time: Integral time ``T_i`` [s] of the wheel servos' integral action.
+            proportional action, wheels not slipping, on the URDF's masses; None: by the
+            drive (:data:`WHEEL_TIME_CONSTANT`, :data:`SKID_STEER_WHEEL_TIME_CONSTANT`).
+        wheel_integral_time: Integral time ``T_i`` [s] of the wheel servos' integral action;
+            None: by the drive (:data:`WHEEL_INTEGRAL_TIME`,
+            :data:`SKID_STEER_WHEEL_INTEGRAL_TIME`).
         yaw_integral_time: Integral time ``T_g`` [s] of a skid-steer platform's yaw-rate loop
             on its gyro (:data:`YAW_INTEGRAL_TIME`); None: no gyro, the wheels get the speeds
             of ``[u, omega]`` only. A platform with one wheel per side (``track_factor`` 1)
@@ -336,8 +148,8 @@ class MujocoPlant:
         q: npt.ArrayLike,
         dt: float = 1e-3,
         friction: float = WHEEL_FRICTION,
-        wheel_time_constant: float = WHEEL_TIME_CONSTANT,
-        wheel_integral_time: float = WHEEL_INTEGRAL_TIME,
+        wheel_time_constant: float | None = None,
+        wheel_integral_time: float | None = None,
         yaw_integral_time: float | None = YAW_INTEGRAL_TIME,
         mass_scale: float = 1.0,
         payload: float = 0.0,
@@ -345,6 +157,11 @@ class MujocoPlant:
     ) -> None:
         if not 0 < dt <= 0.05:
             raise GainError(f"plant step: expected 0 < dt <= 0.05 s, got {dt}")
+        skid = getattr(robot.base, "track_factor", 1.0) != 1.0  # a skid-steer platform
+        if wheel_time_constant is None:
+            wheel_time_constant = SKID_STEER_WHEEL_TIME_CONSTANT if skid else WHEEL_TIME_CONSTANT
+        if wheel_integral_time is None:
+            wheel_integral_time = SKID_STEER_WHEEL_INTEGRAL_TIME if skid else WHEEL_INTEGRAL_TIME
         for name, value in (
             ("wheel_time_constant", wheel_time_constant),
             ("wheel_integral_time", wheel_integral_time),

@@ -1,7 +1,7 @@
 """The floor support a robot stands on in the MuJoCo plant, for the home solver.
 
 :func:`support_polygon` builds the robot's MuJoCo model
-(:func:`pbvs_pin.plant.mujoco_plant.build_spec`, the plant's own), stands it at the origin and
+(:func:`pbvs_pin.plant.mujoco_spec.build_spec`, the plant's own), stands it at the origin and
 returns the convex hull of its floor contacts in the platform's frame
 (:func:`pbvs_pin.plant.mujoco_stability.contact_polygon`, the polygon the plant's tip-over warning
 measures against). Only platform geometry meets the floor, so the polygon does not depend on the
@@ -20,7 +20,7 @@ import pinocchio as pin
 
 from pbvs_pin.exceptions import PbvsError
 from pbvs_pin.model.base import DifferentialDrive
-from pbvs_pin.plant.mujoco_plant import build_spec
+from pbvs_pin.plant.mujoco_spec import build_spec
 from pbvs_pin.plant.mujoco_stability import contact_polygon, polygon_margin
 
 if TYPE_CHECKING:

@@ -51,7 +51,7 @@ def add_key_wheels(
     """Add the drive's two wheels to the platform's root body (in place).
 
     Args:
-        spec: The robot's spec, geometry stripped (:func:`pbvs_pin.plant.mujoco_plant.build_spec`).
+        spec: The robot's spec, geometry stripped (:func:`pbvs_pin.plant.mujoco_spec.build_spec`).
         root: The platform's root body, whose frame lies on the floor at the axle's middle.
         drive: The drive the keys give (its ``wheel_radius`` and ``track`` [m]).
         supported: Whether the platform has collision geometry of its own to stand on; if

@@ -232,10 +232,11 @@ def clause_text(clause: dict[str, Any]) -> str:
 
     A holding clause prints its own relation (``last 5 s: 1.68 px < 8 px``); an optional
     clause without a figure, ``clearance: no figure``. The value gets the digits that tell
-    it from the threshold.
+    it from the threshold. A NaN value (a robot that fell: no finite error) prints as no
+    figure too, as it reads back from ``summary.json``, which stores it as null.
     """
     value, threshold, unit = clause["value"], clause["threshold"], clause["unit"]
-    if value is None:
+    if value is None or value != value:  # None, or NaN
         return f"{clause['name']}: no figure"
     relation = clause["relation"] if clause["holds"] else NEGATIONS[clause["relation"]]
     limit = f"{threshold:g}"

@@ -176,9 +176,12 @@ def engine_row(s: dict[str, Any], speed: bool = True) -> str:
         speed: Include the real-time factor (a wall-clock figure).
     """
     ratio = s["yaw_rate_ratio"]
+    final, rms = (
+        "nan" if s[key] is None else f"{s[key]:.2f}"  # a robot that fell: no finite error
+        for key in ("max_abs_error_final_window_px", "rms_error_after_transient_px")
+    )
     cells = [
-        s["robot"], s["scenario"], s["engine"], verdict(s),
-        f"{s['max_abs_error_final_window_px']:.2f}", f"{s['rms_error_after_transient_px']:.2f}",
+        s["robot"], s["scenario"], s["engine"], verdict(s), final, rms,
         f"{s['odometry_drift_m']:.3f}", f"{math.degrees(s['odometry_drift_rad']):.2f}",
         f"{s['lateral_slip_rms_mps']:.4f}", "-" if ratio is None else f"{ratio:.2f}",
         *([f"{s['real_time_factor']:.0f}x"] if speed else []),
