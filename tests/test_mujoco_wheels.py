@@ -71,3 +71,26 @@ def test_stretch_runs_experiment1_on_mujoco_and_keeps_the_target(stretch):
     assert not np.any(log["target_lost"])
     assert np.all(np.isfinite(error))
     assert error[len(error) // 2 :].max() < 8.0  # the claim's bound, on the last 1.5 s
+
+
+def test_wheels_without_an_effort_limit_keep_their_integral_action(stretch):
+    """The keys' wheels have no effort limit: their integral is clamped at the torque the
+    floor takes from a wheel (friction 1 x its share of the weight x radius), not at zero. A
+    small forward command (2 mm/s) is then reached within 2 % after 2 s; with the clamp at
+    zero (proportional action alone) the platform ran at 2.46 mm/s."""
+    from pbvs_pin.model.servo import ServoModel
+    from pbvs_pin.plant.mujoco_plant import MujocoPlant
+
+    plant = MujocoPlant(stretch, ServoModel.from_robot(stretch), stretch.home(), settle=0.3)
+    weight = pin.computeTotalMass(stretch.model) * 9.81
+    share = weight * RADIUS / len(KEY_WHEELS)  # [N m] friction coefficient 1
+    limits = plant._integral_limit * plant.model.actuator_gainprm[: len(KEY_WHEELS), 0]
+    np.testing.assert_allclose(limits / plant.wheel_integral_time, share, rtol=1e-3)
+    v_ref = np.zeros(stretch.n)
+    v_ref[0] = 0.002
+    speeds = []
+    for step in range(4000):
+        plant.step(v_ref)
+        if step >= 2000:
+            speeds.append(plant.v[0])
+    assert np.mean(speeds) == pytest.approx(0.002, rel=0.02)

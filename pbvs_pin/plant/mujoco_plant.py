@@ -95,10 +95,17 @@ A skid-steer platform whose wheels reach their speeds turns at ``rho omega`` wit
 constant is then ``T_g / rho``, 0.1-0.5 s, no slower than the platform servo the controller's
 model assumes."""
 
+JOINT_LIMIT_TIME_CONSTANT = 0.004
+"""Time constant [s] of an arm joint's limit in MuJoCo (``solref``; MuJoCo's default 0.02 s,
+and never below two steps): a stop, not a rubber pad. With the default, Stretch RE1's servo
+drove a telescoping segment 12.6 mm past its stop in Experiment 4's first 3 s (the rule allows
+10); with 0.004 s, 1.0 mm."""
+
 HOLONOMIC_TIME_CONSTANT = 0.01
 """Time constant [s] of a holonomic base's joint servos (its slides': mass over gain; its yaw's:
 inertia over gain): fast beside the platform's lags of :class:`pbvs_pin.model.servo.ServoModel`,
 so that the base responds as the Pinocchio plant's does."""
+
 
 class MujocoPlant:
     """The robot simulated by MuJoCo, with the Pinocchio plant's interface.
@@ -197,6 +204,7 @@ class MujocoPlant:
             spec.actuator(name).set_to_velocity(kv=1.0)  # scheduled at every step
             joint = spec.joint(name)
             joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            joint.solref_limit = [JOINT_LIMIT_TIME_CONSTANT, 1.0]
             if not np.isfinite(effort):
                 joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
             else:
@@ -237,9 +245,14 @@ class MujocoPlant:
             sides = np.array([left, ~left], dtype=float)  # rows: left, right
             self._wheel_sides = sides / sides.sum(axis=1, keepdims=True)
         self._n_wheels = len(wheels)
-        self._integral_limit = (
-            model.jnt_actfrcrange[[j.id for j in wheels], 1] * wheel_integral_time / wheel_gain
-        )
+        # a wheel without an effort limit (wheels built from the drive keys, a URDF's 0) gets
+        # the torque its share of the weight lets the floor take: more only spins the wheel
+        effort = model.jnt_actfrcrange[[j.id for j in wheels], 1]
+        if wheels:
+            weight = mass * -model.opt.gravity[2]
+            traction = friction * weight * drive.wheel_radius / len(wheels)
+            effort = np.where(effort > 0.0, effort, traction)
+        self._integral_limit = effort * wheel_integral_time / wheel_gain
         self._wheel_integral = np.zeros(len(wheels))
         self._wheel_speed_limit = 0.0 if self.holonomic else drive.max_wheel_speed
         if self.holonomic or drive.track_factor == 1.0:
