@@ -94,3 +94,32 @@ def test_wheels_without_an_effort_limit_keep_their_integral_action(stretch):
         if step >= 2000:
             speeds.append(plant.v[0])
     assert np.mean(speeds) == pytest.approx(0.002, rel=0.02)
+
+
+def test_a_platforms_shapes_below_the_keys_floor_are_left_out_so_that_it_drives():
+    """Fetch whole-body's planning URDF approximates its base with bounding spheres, three of
+    which reach 0.058-0.060 m below the floor its drive keys give (the wheels touch it at the
+    root link's z = 0). They held the built wheels 5.9 cm in the air and the platform never
+    moved. They are left out with a warning naming the file; the platform then stands on its
+    wheels and the key supports, and a 0.2 m/s command moves it at 0.2 m/s."""
+    from pbvs_pin.exceptions import PbvsWarning
+    from pbvs_pin.model.servo import ServoModel
+    from pbvs_pin.plant.mujoco_plant import MujocoPlant
+    from pbvs_pin.plant.mujoco_wheels import KEY_SUPPORTS
+
+    robot_file = next(robot for robot in load_zoo(ROBOTS) if robot.name == "fetch_whole_body")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fetch = RobotSection.from_toml(robot_file.table, str(robot_file.path)).build()
+    with pytest.warns(PbvsWarning, match=r"fetch_whole_body\.urdf: 3 collision shapes") as caught:
+        spec, _ = build_spec(fetch)
+    assert "0.060 m below the floor" in str(caught[0].message)
+    assert {geom.name for geom in spec.geoms} >= set(KEY_SUPPORTS)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plant = MujocoPlant(fetch, ServoModel.from_robot(fetch), fetch.home(), settle=0.3)
+    v_ref = np.zeros(fetch.n)
+    v_ref[0] = 0.2
+    for _ in range(2000):
+        plant.step(v_ref)
+    assert plant.v[0] == pytest.approx(0.2, rel=0.03)

@@ -12,6 +12,7 @@ the drive keys by :mod:`pbvs_pin.plant.mujoco_wheels`) or a holonomic base's pla
 from __future__ import annotations
 
 import io
+import warnings
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -19,7 +20,7 @@ import numpy as np
 import yourdfpy
 from lxml import etree
 
-from pbvs_pin.exceptions import DriveAxleNotFound, GainError, UrdfError
+from pbvs_pin.exceptions import DriveAxleNotFound, GainError, PbvsWarning, UrdfError
 from pbvs_pin.model import frames
 from pbvs_pin.model.assembly import DriveAxle, UrdfSource, find_drive_axle
 from pbvs_pin.model.base import DifferentialDrive, Omnidirectional
@@ -38,6 +39,10 @@ _CONTACT_AFFINITY = 1
 """Robot geoms have ``conaffinity`` 1 and ``contype`` 0, the ground the reverse: robot geoms
 meet the ground but never each other."""
 
+
+FLOOR_TOLERANCE = 0.005
+"""Depth [m] below the drive keys' floor that a platform's collision shape may reach and still
+count as a support (Stretch's caster sphere touches it at 0)."""
 
 WORLD_LINK = "world_link"
 """What a link named ``world`` (an arm's root in example-robot-data's UR URDFs) is renamed."""
@@ -83,6 +88,69 @@ def _static_descendants(body: mujoco.MjsBody) -> list[mujoco.MjsBody]:
                 found.append(child)
                 frontier.append(child)
     return found
+
+
+def _geometry_bottoms(root: mujoco.MjsBody) -> list[tuple[mujoco.MjsGeom, float]]:
+    """Each primitive geom welded to ``root``, with its lowest point's height [m].
+
+    Heights in ``root``'s frame: a sphere's centre minus its radius; a box's, capsule's or
+    cylinder's lowest corner or rim as turned.
+    """
+    found, frontier = [], [(root, np.zeros(3), np.eye(3))]
+    while frontier:
+        body, position, rotation = frontier.pop()
+        for geom in body.geoms:
+            turn = np.zeros(9)
+            mujoco.mju_quat2Mat(turn, np.asarray(geom.quat, dtype=float))
+            axes = rotation @ turn.reshape(3, 3)  # the geom's axes in the root's frame
+            centre = position + rotation @ np.asarray(geom.pos, dtype=float)
+            size, up = np.asarray(geom.size, dtype=float), np.abs(axes[2])
+            depth = {
+                mujoco.mjtGeom.mjGEOM_SPHERE: size[0],
+                mujoco.mjtGeom.mjGEOM_CAPSULE: size[0] + size[1] * up[2],
+                mujoco.mjtGeom.mjGEOM_CYLINDER: size[0] * np.sqrt(max(1.0 - up[2] ** 2, 0.0))
+                + size[1] * up[2],
+                mujoco.mjtGeom.mjGEOM_BOX: float(up @ size),
+            }.get(geom.type)
+            if depth is not None:
+                found.append((geom, float(centre[2] - depth)))
+        for child in body.bodies:
+            if not child.joints:
+                turn = np.zeros(9)
+                mujoco.mju_quat2Mat(turn, np.asarray(child.quat, dtype=float))
+                frontier.append(
+                    (child, position + rotation @ np.asarray(child.pos, dtype=float),
+                     rotation @ turn.reshape(3, 3))
+                )  # fmt: skip
+    return found
+
+
+def _drop_geometry_below_the_floor(
+    spec: mujoco.MjSpec, root: mujoco.MjsBody, label: str
+) -> list[float]:
+    """Remove the platform's primitive geoms that reach below the floor of the drive keys.
+
+    Returns the lowest points [m] of those kept (:func:`_geometry_bottoms`).
+
+    Wheels built from the keys touch the floor at the root's ``z = 0``. Geometry that reaches
+    lower (a planning URDF's bounding spheres: Fetch whole-body's reach 0.06 m below) would
+    hold them in the air, and the platform would never move; it is not a support, and is
+    removed with a warning (:class:`~pbvs_pin.exceptions.PbvsWarning`) naming the file.
+    """
+    bottoms = _geometry_bottoms(root)
+    below = [(geom, bottom) for geom, bottom in bottoms if bottom < -FLOOR_TOLERANCE]
+    for geom, _ in below:
+        spec.delete(geom)
+    if below:
+        warnings.warn(
+            f"{label}: {len(below)} collision shapes of the platform reach up to "
+            f"{-min(b for _, b in below):.3f} m below the floor its drive keys give (wheel_radius: "
+            "the wheels touch the floor at the root link's z = 0); the MuJoCo plant leaves them "
+            "out so that the wheels touch the floor",
+            PbvsWarning,
+            stacklevel=4,
+        )
+    return [bottom for _, bottom in bottoms if bottom >= -FLOOR_TOLERANCE]
 
 
 def _repair_inertia(body: mujoco.MjsBody) -> None:
@@ -138,7 +206,8 @@ def build_spec(
         root = spec.body(frames.DRIVE_FOOTPRINT)
     except DriveAxleNotFound:  # the drive keys gave the drive: wheels built from them
         root = spec.worldbody.first_body()
-        supported = any(body.geoms for body in _static_descendants(root))
+        kept = _drop_geometry_below_the_floor(spec, root, robot.source)
+        supported = any(bottom <= FLOOR_TOLERANCE for bottom in kept)  # something stands on it
         axle = add_key_wheels(spec, root, robot.base, supported)
     root.add_freejoint(name=frames.DRIVE_FOOTPRINT)
     platform = {body.name for body in _static_descendants(root)}
