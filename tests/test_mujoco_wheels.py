@@ -123,3 +123,32 @@ def test_a_platforms_shapes_below_the_keys_floor_are_left_out_so_that_it_drives(
     for _ in range(2000):
         plant.step(v_ref)
     assert plant.v[0] == pytest.approx(0.2, rel=0.03)
+
+
+def test_a_platform_on_key_supports_stands_on_both_wheels_and_one_support():
+    """Fetch: no collision geometry of its own, so two support spheres are added, their
+    lowest point 2 mm above the floor (``KEY_SUPPORT_GAP``). Standing at home, both wheels
+    touch the floor and one support does (three points). With the supports on the floor all
+    four touched, and a reaching arm rolled the platform onto one wheel."""
+    from pbvs_pin.model.servo import ServoModel
+    from pbvs_pin.plant.mujoco_plant import MujocoPlant
+    from pbvs_pin.plant.mujoco_wheels import KEY_SUPPORTS
+
+    robot_file = next(robot for robot in load_zoo(ROBOTS) if robot.name == "fetch")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fetch = RobotSection.from_toml(robot_file.table, str(robot_file.path)).build()
+        plant = MujocoPlant(fetch, ServoModel.from_robot(fetch), fetch.home(), settle=0.5)
+    model, data = plant.model, plant.data
+    touches = [c for c in data.contact[: data.ncon] if c.dist <= 1e-4]  # not the listed gaps
+    touching = {
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.geom_bodyid[geom])
+        for contact in touches
+        for geom in (contact.geom1, contact.geom2)
+    } | {
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+        for contact in touches
+        for geom in (contact.geom1, contact.geom2)
+    }
+    assert set(KEY_WHEELS) <= touching, touching
+    assert len(set(KEY_SUPPORTS) & touching) == 1, touching

@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pbvs_pin.exceptions import PbvsWarning
+from pbvs_pin.plant.mujoco_wheels import KEY_SUPPORTS
 
 
 def convex_hull(points: npt.ArrayLike) -> np.ndarray:
@@ -79,18 +80,27 @@ def polygon_margin(vertices: npt.ArrayLike, point: npt.ArrayLike) -> float:
 def contact_polygon(data: mujoco.MjData) -> np.ndarray:
     """The support: convex hull of the floor contacts in the platform's frame (body 1, the root).
 
-    From the last ``mj_forward``. A wheel placed exactly on the floor touches it at one point of
-    its tread's edge, so the hull lies within the wheels' footprint: a margin measured against
-    it errs on the safe side.
+    From the last ``mj_forward``; with the lowest points of the support spheres built from the
+    drive keys (:data:`~pbvs_pin.plant.mujoco_wheels.KEY_SUPPORTS`), which stand
+    :data:`~pbvs_pin.plant.mujoco_wheels.KEY_SUPPORT_GAP` above the floor. A wheel placed
+    exactly on the floor touches it at one point of its tread's edge, so the hull lies within
+    the wheels' footprint: a margin measured against it errs on the safe side.
 
     Returns:
         The hull's vertices [m] counter-clockwise (:func:`convex_hull`), shape (m, 2); (0, 2)
         without contacts.
     """
-    if data.ncon == 0:
+    points = [data.contact[i].pos for i in range(data.ncon)]
+    if points:  # the key supports, 2 mm above the floor, catch the platform as it pitches
+        model = data.model
+        for name in KEY_SUPPORTS:
+            geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
+            if geom >= 0:
+                points.append(data.geom_xpos[geom] - [0.0, 0.0, model.geom_size[geom][0]])
+    if not points:
         return np.zeros((0, 2))
     rotation = data.xmat[1].reshape(3, 3)
-    contacts = np.array([data.contact[i].pos for i in range(data.ncon)])
+    contacts = np.array(points)
     return convex_hull(((contacts - data.xpos[1]) @ rotation)[:, :2])  # rows: R^T (p - o)
 
 

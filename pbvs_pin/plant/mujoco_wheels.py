@@ -17,8 +17,8 @@ centre of mass to the axle: about 1 mm on Stretch); its inertia is a solid cylin
 The URDF's own wheel joints are welded (the plant welds every joint the controller's model
 locks). A platform with no primitive collision geometry of its own (its caster a mesh, or
 none) gets two frictionless spheres of radius ``wheel_radius / 2`` on its centreline,
-``track / 2`` ahead of and behind the axle, so that it stands; Stretch keeps its own caster
-sphere.
+``track / 2`` ahead of and behind the axle, :data:`KEY_SUPPORT_GAP` above the floor, so that
+it stands; Stretch keeps its own caster sphere.
 """
 
 from __future__ import annotations
@@ -40,6 +40,13 @@ KEY_WHEELS = ("key_wheel_left", "key_wheel_right")
 
 KEY_SUPPORTS = ("key_support_front", "key_support_rear")
 """Names of the frictionless support spheres added to a platform with no collision geometry."""
+
+KEY_SUPPORT_GAP = 0.002
+"""Height [m] of the support spheres' lowest point above the floor. Both wheels then carry the
+platform, and one support catches it as it pitches (three points). With both supports on the
+floor, four rigid points on a line and two wheels, a reaching arm rolled the platform onto
+one wheel: Fetch drove backward at 7-11 mm/s against a forward command of 10-15 mm/s and
+missed Experiments 2 and 3 on MuJoCo (22.9 and 28.8 px)."""
 
 _AXIS_Y = [np.sqrt(0.5), -np.sqrt(0.5), 0.0, 0.0]
 """Quaternion turning a geom's z axis (a cylinder's) onto its body's y axis."""
@@ -78,6 +85,6 @@ def add_key_wheels(
                 name=name,
                 type=mujoco.mjtGeom.mjGEOM_SPHERE,
                 size=[radius / 2, 0.0, 0.0],
-                pos=[sign * drive.track / 2, 0.0, radius / 2],
+                pos=[sign * drive.track / 2, 0.0, radius / 2 + KEY_SUPPORT_GAP],
             )
     return DriveAxle(drive, np.eye(4), KEY_WHEELS)
