@@ -299,6 +299,7 @@ SLOW_FILES = frozenset(
         "test_docs.py",
         "test_fuzz.py",
         "test_holonomic.py",
+        "test_knobs.py",
         "test_mujoco_acceptance.py",
         "test_mujoco_stability.py",
         "test_plant_engines.py",
@@ -306,15 +307,16 @@ SLOW_FILES = frozenset(
         "test_readme_numbers.py",
         "test_readme_numbers_arms.py",
         "test_readme_numbers_mujoco.py",
+        "test_render.py",
         "test_ros.py",
         "test_zoo.py",
     }
 )
 """Test files marked ``slow``: the full suite runs them, the quick subset
-(``python -m pytest -m "not slow"``, the README's) leaves them out. They are the 21 files
-that took the longest in a full run (90 % of its test time; the per-file times the suite prints
-at its end, measured before the libraries moved); the other files now take a third of the
-suite's worker time (270 of 801 s, 144 s wall on two workers; 2026-12-05)."""
+(``python -m pytest -m "not slow"``, the README's) leaves them out. They are the 23 files
+that took the longest in a full run (the per-file times the suite prints at its end); the
+other files take about a quarter of the suite's worker time (225 of 851 s in a fresh clone's
+run, 2026-12-05)."""
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
