@@ -150,7 +150,7 @@ def _check_bag(bag, summary: dict, steps: int) -> None:
 
 
 def _own_node_run(env: dict, node_for: str, sim: tuple[str, ...], duration: float,
-                  summary_path) -> dict:  # fmt: skip
+                  summary_path, rate_factor: float = 1.0) -> dict:  # fmt: skip
     """A node of its own for ``node_for`` (a scenario or robot), waiting for readings stamped
     with its step's time, and the simulated robot (``ros sim`` with ``sim``), both on ``env``'s
     domain, for ``duration`` simulated seconds; the sim's summary."""
@@ -162,7 +162,8 @@ def _own_node_run(env: dict, node_for: str, sim: tuple[str, ...], duration: floa
         assert "running" in node.stdout.readline(), node.stderr.read()
         sim = subprocess.run(
             _cli("sim", *sim, "--engine", "pinocchio", "--duration", str(duration),
-                 "--lockstep", "1", "--wait", "60", "--summary", str(summary_path)),
+                 "--lockstep", "1", "--wait", "60", "--rate-factor", str(rate_factor),
+                 "--summary", str(summary_path)),
             env=env, capture_output=True, text=True, timeout=300,
         )  # fmt: skip
         assert sim.returncode == 0, sim.stderr[-2000:]
@@ -200,28 +201,35 @@ def test_a_holonomic_robot_holds_experiment1_across_processes(ros_env, tmp_path)
 
 
 def test_experiment2_holds_the_target_past_the_obstacle_across_processes(ros_env, tmp_path):
-    """Experiment 2 (the obstacle: the ``scan`` path too) on the reference robot, 20 s, past
-    the obstacle's closest approach (18.7 s): the error over [7, 20] s against Experiment 2's
-    8 px, and the clearance clause (> 0). The posture clause (the arm back within 0.1 rad of
-    ``theta_d`` over the last 5 s) needs the whole 60 s (the arm is 1.04 rad away at 20 s in
-    ``simulate()``, 0.065 rad at 40 s) and is not checked here.
+    """Experiment 2 (the obstacle: the ``scan`` path too) on the reference robot, its whole
+    60 s, simulated at up to three times the wall clock (lockstep keeps every step answered):
+    Experiment 2's rule across processes, clause by clause: the error over [7, 60] s (past the
+    transient) under 8 px, the clearance above 0, and the arm within 0.1 rad of ``theta_d``
+    over the last 5 s (eq. 19's posture clause).
 
-    With ``wait_for_readings``, three runs: 1.39 px over [7, 20] s and clearance 0.0650 m in
-    each; ``simulate()`` on the same 20 s (rendered camera): 1.17 px and 0.0647 m.
+    Measured: 2.16 px over [7, 60] s, 0.37 px over the last 5 s, clearance 0.065 m, posture
+    0.037 rad, 5 999 of 6 000 steps answered, 32 s of wall-clock time. Over the first 20 s
+    (the test's earlier length, before the transport fix made 60 s affordable): 1.39 px over
+    [7, 20] s in each of six runs; ``simulate()`` on the same 20 s (rendered camera): 1.17 px
+    and 0.0647 m.
     """
-    duration, window = 20.0, 7.0
+    duration, window = 60.0, 7.0
     summary = _own_node_run(_domain(ros_env, 110), "experiment2", ("experiment2",), duration,
-                            tmp_path / "summary.json")  # fmt: skip
+                            tmp_path / "summary.json", rate_factor=3.0)  # fmt: skip
     t, error = np.array(summary["t"]), np.abs(np.array(summary["error"]))
     assert summary["fresh_commands"] >= 0.99 * round(duration / PERIOD)
     held = error[t >= window].max()
-    assert held < ERROR_BOUND, f"max |e| over [7, 20] s: {held:.2f} px"
-    clearance = np.array(summary["clearance"], dtype=float)
+    assert held < ERROR_BOUND, f"max |e| over [7, 60] s: {held:.2f} px"
+    clearance = np.array([np.inf if c is None else c for c in summary["clearance"]], dtype=float)
     closest = t[np.argmin(clearance)]
-    assert 15.0 < closest < duration - 0.5  # the closest approach is inside the run
+    assert 15.0 < closest < 25.0  # the closest approach (18.7 s in simulate()) is inside the run
     assert clearance.min() > 0.0, f"clearance {clearance.min():.4f} m at {closest:.2f} s"
-    assert len(summary["arm"]) == len(t) and len(summary["posture_target"]) == 3
-    print(f"ROS Experiment 2: {held:.2f} px over [7, 20] s, clearance {clearance.min():.4f} m")
+    last = t >= t[-1] - 5.0 + 1e-9
+    arm, target = np.array(summary["arm"]), np.array(summary["posture_target"])
+    posture = np.abs(arm[last] - target).max()
+    assert posture < 0.1, f"arm {posture:.3f} rad from theta_d over the last 5 s"
+    print(f"ROS Experiment 2: {held:.2f} px over [7, 60] s, clearance {clearance.min():.4f} m, "
+          f"posture {posture:.3f} rad")
 
 
 @pytest.fixture(scope="module")
