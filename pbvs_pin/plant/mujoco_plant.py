@@ -255,7 +255,7 @@ class MujocoPlant:
         self._integral_limit = effort * wheel_integral_time / wheel_gain
         self._wheel_integral = np.zeros(len(wheels))
         self._wheel_speed_limit = 0.0 if self.holonomic else drive.max_wheel_speed
-        if self.holonomic or drive.track_factor == 1.0:
+        if not skid:  # a holonomic base, or one wheel per side: no yaw loop
             yaw_integral_time = None
         self._yaw_gain = 0.0 if yaw_integral_time is None else 1.0 / yaw_integral_time
         self._yaw_integral_limit = (

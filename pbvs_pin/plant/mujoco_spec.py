@@ -79,15 +79,32 @@ def _drive_axle(xml: bytes, label: str) -> DriveAxle:
     return find_drive_axle(UrdfSource(urdf.robot, label, ()))
 
 
+def _rotation(quat: np.ndarray) -> np.ndarray:
+    """The rotation matrix of a MuJoCo quaternion ``[w, x, y, z]``. Shape (3, 3)."""
+    matrix = np.zeros(9)
+    mujoco.mju_quat2Mat(matrix, np.asarray(quat, dtype=float))
+    return matrix.reshape(3, 3)
+
+
+def _welded_frames(root: mujoco.MjsBody) -> list[tuple[mujoco.MjsBody, np.ndarray, np.ndarray]]:
+    """``root`` and every body welded to it (reached without crossing a joint), with frames.
+
+    Each body comes with its position [m] and rotation in ``root``'s frame.
+    """
+    found, frontier = [], [(root, np.zeros(3), np.eye(3))]
+    while frontier:
+        body, position, rotation = frontier.pop()
+        found.append((body, position, rotation))
+        for child in body.bodies:
+            if not child.joints:
+                offset = position + rotation @ np.asarray(child.pos, dtype=float)
+                frontier.append((child, offset, rotation @ _rotation(child.quat)))
+    return found
+
+
 def _static_descendants(body: mujoco.MjsBody) -> list[mujoco.MjsBody]:
     """``body`` and every body welded to it (reached without crossing a joint)."""
-    found, frontier = [body], [body]
-    while frontier:
-        for child in frontier.pop().bodies:
-            if not child.joints:
-                found.append(child)
-                frontier.append(child)
-    return found
+    return [welded for welded, _, _ in _welded_frames(body)]
 
 
 def _geometry_bottoms(root: mujoco.MjsBody) -> list[tuple[mujoco.MjsGeom, float]]:
@@ -96,15 +113,12 @@ def _geometry_bottoms(root: mujoco.MjsBody) -> list[tuple[mujoco.MjsGeom, float]
     Heights in ``root``'s frame: a sphere's centre minus its radius; a box's, capsule's or
     cylinder's lowest corner or rim as turned.
     """
-    found, frontier = [], [(root, np.zeros(3), np.eye(3))]
-    while frontier:
-        body, position, rotation = frontier.pop()
+    found = []
+    for body, position, rotation in _welded_frames(root):
         for geom in body.geoms:
-            turn = np.zeros(9)
-            mujoco.mju_quat2Mat(turn, np.asarray(geom.quat, dtype=float))
-            axes = rotation @ turn.reshape(3, 3)  # the geom's axes in the root's frame
+            up = np.abs((rotation @ _rotation(geom.quat))[2])  # |z| of the geom's axes
             centre = position + rotation @ np.asarray(geom.pos, dtype=float)
-            size, up = np.asarray(geom.size, dtype=float), np.abs(axes[2])
+            size = np.asarray(geom.size, dtype=float)
             depth = {
                 mujoco.mjtGeom.mjGEOM_SPHERE: size[0],
                 mujoco.mjtGeom.mjGEOM_CAPSULE: size[0] + size[1] * up[2],
@@ -114,14 +128,6 @@ def _geometry_bottoms(root: mujoco.MjsBody) -> list[tuple[mujoco.MjsGeom, float]
             }.get(geom.type)
             if depth is not None:
                 found.append((geom, float(centre[2] - depth)))
-        for child in body.bodies:
-            if not child.joints:
-                turn = np.zeros(9)
-                mujoco.mju_quat2Mat(turn, np.asarray(child.quat, dtype=float))
-                frontier.append(
-                    (child, position + rotation @ np.asarray(child.pos, dtype=float),
-                     rotation @ turn.reshape(3, 3))
-                )  # fmt: skip
     return found
 
 
