@@ -311,7 +311,7 @@ class ServoGains:
     k2: tuple[float, ...] = (0.2,)
     feature_scale: float = 150.0
     weights: tuple = (1.0,)
-    feedback: str = "transpose"
+    feedback: str = "balanced"
     damping_threshold: float = 0.05
     max_damping: float = 0.05
     upright: bool = True

@@ -198,10 +198,11 @@ class ControllerSection(Section):
         matrix=True,
     )
     feedback: str = key(
-        "transpose",
-        "transpose (-J^T K_c e, the paper's), pseudoinverse (-J# K_c e) or balanced (every "
-        "direction of J J^T at the loop-gain margin per camera sample, in velocity-limit units, "
-        "joints at their stops left out; pbvs_pin.control.kinematic.balanced_feedback).",
+        "balanced",
+        "balanced (every direction of J J^T at the loop-gain margin per camera sample, in "
+        "velocity-limit units, joints at their stops left out; "
+        "pbvs_pin.control.balanced.balanced_feedback), transpose (-J^T K_c e, the paper's) or "
+        "pseudoinverse (-J# K_c e).",
         choices=FEEDBACK_LAWS,
     )
     ibvs_gain: float = key(0.5, "lambda of the classic IBVS law [1/s].", sign=POSITIVE)
