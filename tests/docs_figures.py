@@ -42,6 +42,10 @@ IDEALISED = {
 }  # fmt: skip
 """The old idealisation: exact state, no latency, an exact laser, no prediction."""
 
+PAPERS_LAW = {"controller.feedback": "transpose"}
+"""The paper's feedback ``-J^T K_c e`` (the default is the balanced law): for the figures about
+its loop gain and the net that caps it."""
+
 EXPERIMENTS = ("experiment1", "experiment2", "experiment3", "experiment4")
 
 OSCILLATION_FLAG_PX = 3.0

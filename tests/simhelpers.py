@@ -75,16 +75,18 @@ def feature_error(log: Any) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- scenarios
-def exact_passivity_scenario(duration: float = 8.0) -> Scenario:
+def exact_passivity_scenario(duration: float = 8.0, feedback: str = "transpose") -> Scenario:
     """Experiment 1 shortened, with every model exact and the camera at the control rate.
 
     Exact target velocity, no pixel noise, no latency, camera, controller and log at 100 Hz,
     so the logged ``nu``, ``passivity_input`` and ``storage`` are samples of the continuous
-    signals of eq. (9) at the control instants.
+    signals of eq. (9) at the control instants. ``feedback``: ``controller.feedback``, the
+    paper's law unless named.
     """
     return load_scenario("experiment1").with_values(
         **{
             "duration": duration,
+            "controller.feedback": feedback,
             "estimator.kind": "exact",
             "camera.noise_px": 0.0,
             "camera.latency": 0.0,

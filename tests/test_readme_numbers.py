@@ -10,6 +10,7 @@ from docs_figures import (
     IDEALISED,
     NET_OFF,
     OSCILLATION_FLAG_PX,
+    PAPERS_LAW,
     run,
     stated,
 )
@@ -50,11 +51,13 @@ def test_the_old_idealisation():
 
 
 def test_feature_scale_80():
+    """The paper's law (its loop gain scales with 1 / feature_scale^2; the balanced law's
+    feedback does not depend on the scale)."""
     unprotected, figures = run(
         "experiment1",
         **{
             "controller.feature_scale": 80.0, "controller.loop_gain_margin": NET_OFF,
-            "estimator.predict": False,
+            "estimator.predict": False, **PAPERS_LAW,
         },
     )  # fmt: skip
     stated(
@@ -62,12 +65,12 @@ def test_feature_scale_80():
         f"{unprotected['oscillation_rms_px']:.0f} px RMS above 0.5 Hz, arm joints at up to "
         f"{figures['arm_speed_final_window']:.2f} rad/s"
     )
-    held, held_figures = run("experiment1", **{"controller.feature_scale": 80.0})
+    held, held_figures = run("experiment1", **{"controller.feature_scale": 80.0, **PAPERS_LAW})
     stated(
         f"80 px holds ({held['max_abs_error_final_window_px']:.2f} px), but the net cuts the "
         f"gain in {held_figures['gain_limited'] * 100:.1f} % of the samples"
     )
-    assert run("experiment1")[1]["gain_limited"] == 0.0  # "with 150 px it never acts"
+    assert run("experiment1", **PAPERS_LAW)[1]["gain_limited"] == 0.0  # "with 150 px, never"
     assert unprotected["oscillation_rms_px"] > OSCILLATION_FLAG_PX  # "limit-cycles"
     unprotected_error = unprotected["max_abs_error_final_window_px"]
     assert unprotected_error > 10 * held["max_abs_error_final_window_px"]
@@ -75,19 +78,24 @@ def test_feature_scale_80():
 
 
 def test_the_loop_gain_net():
-    largest = [run(name)[1]["largest_gain"] for name in EXPERIMENTS]
+    """The paper's law's net (the balanced law sets every direction at its stated gain)."""
+    largest = [run(name, **PAPERS_LAW)[1]["largest_gain"] for name in EXPERIMENTS]
     stated(
         f"largest gain per sample {largest[0]:.2f}, {largest[1]:.2f}, {largest[2]:.2f} and "
         f"{largest[3]:.2f} in Experiments 1-4"
     )
-    acting = [run(name, **{"estimator.predict": False})[1]["gain_limited"] for name in EXPERIMENTS]
+    acting = [
+        run(name, **{"estimator.predict": False, **PAPERS_LAW})[1]["gain_limited"]
+        for name in EXPERIMENTS
+    ]
     assert len({f"{fraction * 100:.1f}" for fraction in acting[:3]}) == 1
     stated(
         f"it acted in {acting[0] * 100:.1f} % of the samples of Experiments 1-3 and "
         f"{acting[3] * 100:.0f} % of Experiment 4's"
     )
     without = run(
-        "experiment2", **{"controller.loop_gain_margin": NET_OFF, "estimator.predict": False}
+        "experiment2",
+        **{"controller.loop_gain_margin": NET_OFF, "estimator.predict": False, **PAPERS_LAW},
     )[0]
     stated(f"oscillated at {without['oscillation_rms_px']:.1f} px RMS above 0.5 Hz")
     assert max(largest) < LOOP_GAIN_MARGIN  # with prediction the net never acts
@@ -115,9 +123,12 @@ def test_compensating_the_arm_too():
     error = "max_abs_error_final_window_px"
     assert arm_too[3][error] > platform[error]  # "rose": compensating the arm does worse
     oscillation = [summary["oscillation_rms_px"] for summary in arm_too]
-    assert 0.0 < min(oscillation) and max(oscillation) < OSCILLATION_FLAG_PX
+    assert 0.0 < min(oscillation)
+    over = [i + 1 for i, rms in enumerate(oscillation) if rms >= OSCILLATION_FLAG_PX]
     stated(
-        f"oscillate by {min(oscillation):.1f}-{max(oscillation):.1f} px RMS above 0.5 Hz",
+        f"oscillate by {min(oscillation):.1f}-{max(oscillation):.1f} px RMS above 0.5 Hz "
+        f"(Experiments {' and '.join(map(str, over)) or 'none'} at or above the rules' "
+        f"{OSCILLATION_FLAG_PX:.0f} px)",
         "limitations",
     )
 

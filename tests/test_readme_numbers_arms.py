@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from docs_figures import (
     EXPERIMENTS,
+    PAPERS_LAW,
     run,
     stated,
 )
@@ -59,7 +60,10 @@ def test_the_net_on_six_and_seven_joint_arms():
     arms = [name for name in ROBOT_NAMES if load_robot(name).n_arm in (6, 7)]
     assert len(arms) >= 4
     acting = {
-        name: [run(experiment, **{"robot.name": robot})[1]["gain_limited"] for robot in arms]
+        name: [
+            run(experiment, **{"robot.name": robot, **PAPERS_LAW})[1]["gain_limited"]
+            for robot in arms
+        ]
         for name, experiment in zip("1234", EXPERIMENTS, strict=True)
     }
     first_three = acting["1"] + acting["2"] + acting["3"]

@@ -36,11 +36,13 @@ def test_prediction_on_the_mujoco_plant():
     stated(
         f"Experiment 2's oscillation above 0.5 Hz {cyton[0]:.2f} and {cyton[1]:.2f} px RMS "
         f"(the report flags 3 px), TIAGo's {tiago[0]:.2f} and {tiago[1]:.2f} px; `pioneer_ur5` "
-        f"Experiment 4 ended up to {ur5[0]:.2f} and {ur5[1]:.2f} px off over the last 5 s"
+        f"Experiment 4 ended up to {ur5[0]:.2f} px off over the last 5 s without prediction, "
+        "and tipped over with it"
     )
-    for without, with_prediction in (cyton, tiago, ur5):  # prediction lowers each
+    for without, with_prediction in (cyton, tiago):  # prediction lowers each
         assert with_prediction < without
-    assert max(cyton[1], tiago[1]) < OSCILLATION_FLAG_PX and ur5[1] < 0.5  # the claim: 0.5 px
+    assert max(cyton[1], tiago[1]) < OSCILLATION_FLAG_PX
+    assert ur5[1] > 100 * ur5[0]  # a fallen robot's error (the gallery's table)
 
 
 def test_payload_with_integral_servos():
@@ -55,9 +57,10 @@ def test_payload_with_integral_servos():
         f"with the integral {pair('pinocchio', 0.5)} px (MuJoCo: {pair('mujoco', 0.5)} px), "
         f"1 kg {pair('pinocchio', 1.0)} px ({pair('mujoco', 1.0)} px)"
     )
-    for engine in ("pinocchio", "mujoco"):  # the integral takes the payload: within 3 px
-        for kg in (0.5, 1.0):
-            assert max(final(engine, kg, name) for name in ("experiment1", "experiment4")) < 3.0
+    for kg in (0.5, 1.0):  # the integral takes the payload: within 3 px (Pinocchio plant),
+        assert max(final("pinocchio", kg, name) for name in ("experiment1", "experiment4")) < 3.0
+        for engine in ("pinocchio", "mujoco"):  # and far below the proportional servos' 16-70 px
+            assert max(final(engine, kg, name) for name in ("experiment1", "experiment4")) < 8.0
 
 
 def test_tiago_pro_on_the_mujoco_plant():
@@ -79,8 +82,8 @@ def test_tiago_pro_on_the_mujoco_plant():
 
 
 def test_unshipped_arms_on_the_mujoco_plant():
-    """The Reach Bravo 7 holds; the UR10, its arm on the platform, loses the target in
-    Experiments 1 and 3 (the Pioneer tips under the heavy arm, as with the UR5)."""
+    """The Reach Bravo 7 holds; the UR10, its arm on the platform, loses the target in all four
+    experiments (the Pioneer tips under the heavy arm, as with the UR5)."""
     def runs(arm: str) -> list[dict]:
         values = robot_values(unshipped_arm(arm))
         return [run(name, **values, **{"plant.engine": "mujoco"})[0] for name in EXPERIMENTS]
@@ -89,15 +92,9 @@ def test_unshipped_arms_on_the_mujoco_plant():
     assert max(bravo) < 5.0  # "hold"
     stated(f"the unshipped Reach Bravo 7 ends Experiments 1-4 at {bravo[0]:.2f}, {bravo[1]:.2f}, "
            f"{bravo[2]:.2f} and {bravo[3]:.2f} px", "limitations")  # fmt: skip
-    ur10 = runs("ur10")
-    assert ur10[0]["target_lost_samples"] > 0 and ur10[2]["target_lost_samples"] > 0
-    assert ur10[1]["target_lost_samples"] == 0 and ur10[3]["target_lost_samples"] == 0
+    lost = [summary["target_lost_samples"] for summary in runs("ur10")]
+    assert min(lost) > 0
     stated(
-        f"loses the target in Experiments 1 and 3 ({ur10[0]['target_lost_samples']} and "
-        f"{ur10[2]['target_lost_samples']} samples", "limitations",
+        f"with the balanced law it loses the target in all four ({lost[0]}, {lost[1]}, "
+        f"{lost[2]} and {lost[3]} samples", "limitations",
     )  # fmt: skip
-    stated(
-        f"Experiment 2 ({ur10[1]['oscillation_rms_px']:.1f} px RMS above 0.5 Hz) and ends "
-        f"Experiment 4 at {ur10[3]['max_abs_error_final_window_px']:.2f} px (rule 0.5)",
-        "limitations",
-    )

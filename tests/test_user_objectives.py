@@ -18,8 +18,8 @@ from pbvs_pin.exceptions import WrongType
 CONTROL_STEPS = 3000
 """Control steps of Experiment 1: 30 s at the default 100 Hz."""
 
-PAN_TARGET = 0.4
-"""Where the objective pulls the shoulder pan [rad] (home 0; 0.13 at the end without it)."""
+PAN_TARGET = 0.6
+"""Where the objective pulls the shoulder pan [rad] (home 0; 0.24 at the end without it)."""
 
 
 class PanTo(pbvs_pin.SecondaryObjective):

@@ -126,9 +126,10 @@ def test_command_line_reuses_the_runs_and_writes_the_page(short_zoo, tmp_path, c
 
 
 def _asked_loop_gain(name: str) -> tuple[float, float]:
-    """Median loop gain asked for over Experiment 4's first 10 s, and the net's share."""
+    """Median loop gain the paper's law asks for over Experiment 4's first 10 s, and the net's
+    share."""
     robot_file = next(robot for robot in load_zoo(ROBOTS) if robot.name == name)
-    values = robot_file.scenario_values
+    values = {**robot_file.scenario_values, "controller.feedback": "transpose"}
     scenario = load_scenario("experiment4").with_values(**values, duration=10.0)
     spec = RobotSection.from_toml(robot_file.table, str(robot_file.path))
     with warnings.catch_warnings():
@@ -140,7 +141,7 @@ def _asked_loop_gain(name: str) -> tuple[float, float]:
 
 
 def test_vega_asks_for_a_loop_gain_the_net_must_cut_in_experiment4():
-    """docs/zoo.rst's diagnosis of Vega-1's Experiment 4: with the shipped gains, the loop
+    """docs/zoo.rst's diagnosis of Vega-1's Experiment 4 under the paper's law: the loop
     gain ``g = k T lambda_max(J J^T)`` its Jacobian asks for is above 2, the sampled loop's
     stability limit, in almost every sample, so the net cuts every feature gain (to at most
     half); UR10, which holds the experiment, asks for less than the margin (1) at its home

@@ -6,10 +6,10 @@ eigenvalue, so one gain ``k`` serves every direction. On robots whose eigenvalue
 apart it cannot: Vega-1's largest direction made the loop-gain net cut every gain to a third
 (Experiment 4 ended 3.92 px off), and Stretch's depth direction, 600 times slower than its
 telescoping arm, left the depth error to a time constant of minutes. ``balanced`` sets the
-feedback per direction from the robot's model and the camera period (an extension, not the
-default: with it Vega-1 holds Experiment 4 at 0.05 px, and 18 of the zoo's 20 robots hold all
-four experiments on the Pinocchio plant and 15 on MuJoCo, against 15 and 12 with the paper's
-law; the zoo with it is on the docs' *Feedback per direction* page):
+feedback per direction from the robot's model and the camera period (an extension, and the
+default since this round: with it Vega-1 holds Experiment 4 at 0.05 px, and 18 of the zoo's 20
+robots hold all four experiments on the Pinocchio plant and 15 on MuJoCo, against 15 and 12
+with the paper's law; the docs' *Feedback per direction* page compares them):
 
 .. math:: u_{fb} = -g\, M J^T (J M J^T + \mu^2 I)^{-1} K_c \tilde\xi,\qquad
           M = \mathrm{diag}(h_j \bar u_j^2),\qquad g = \frac{\rho}{T k_{max}}

@@ -179,7 +179,12 @@ class ControllerSection(Section):
     law: str = key(
         "passivity", "passivity (eq. 34) or ibvs (classic baseline).", choices=("passivity", "ibvs")
     )
-    k: tuple[float, ...] = key((0.15,), "k_i of K_c [1/s]: 1 or 3 values.", sign=POSITIVE)
+    k: tuple[float, ...] = key(
+        (0.15,),
+        "k_i of K_c [1/s]: 1 or 3 values (the balanced law's feedback takes only their ratios, "
+        "which weight the features; their scale sets V1 and the other laws' gain).",
+        sign=POSITIVE,
+    )
     k1: tuple[float, ...] = key(
         (0.7, 1.0, 0.1, 0.1, 0.1),
         "Diagonal of k_1, null-space amplitude [m/s or rad/s]: 1 or n values (5 values for "
@@ -190,7 +195,12 @@ class ControllerSection(Section):
         (0.2,), "Diagonal of k_2, null-space slope [1/unit of Lambda]: 1 or n values.",
         sign=POSITIVE,
     )  # fmt: skip
-    feature_scale: float = key(150.0, "Pixels per controller feature unit [px].", sign=POSITIVE)
+    feature_scale: float = key(
+        150.0,
+        "Pixels per controller feature unit [px] (V1's units; the balanced law's feedback does "
+        "not depend on it, the transpose law's gain scales with 1 / feature_scale^2).",
+        sign=POSITIVE,
+    )
     weights: tuple = key(
         (1.0,),
         "W: its positive diagonal (1 or n values) or the full n x n symmetric positive "

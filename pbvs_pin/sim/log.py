@@ -390,6 +390,7 @@ class RunRecorder:
             "source": scenario.source,
             **setup.robot_meta(),
             "law": scenario.controller.law,
+            "feedback": scenario.controller.feedback,
             "user_objectives": [type(o).__name__ for o in setup.control.user_objectives],
             "engine": scenario.plant.engine,
             "feature_scale": gains.feature_scale,

@@ -74,6 +74,7 @@ def summarize(log: RunLog) -> dict[str, Any]:
         "scenario": log.meta["scenario"],
         "robot": log.meta["robot"],
         "law": log.meta["law"],
+        "feedback": log.meta.get("feedback", "transpose"),
         "engine": log.meta.get("engine", "pinocchio"),
         "compensation": log.meta.get("compensation"),
         "duration_s": float(t[-1]),

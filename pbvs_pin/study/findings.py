@@ -163,13 +163,20 @@ def baseline_paragraph(pairs: list[tuple[str, dict, dict]]) -> list[str]:
         f"the classic IBVS baseline has the smaller RMS error after 2 s in {_count(ibvs_better)} "
         "experiments"
     )
-    why = (
-        " The paper's law feeds the error back through `J^T`, whose weakest direction here is "
-        "the depth (the distance to the target), so that component converges slowly; the "
-        "baseline's `J#` feedback converges at the same rate in every direction."
-        if any(ibvs_better)
-        else ""
-    )
+    feedback = {p.get("feedback", "transpose") for _, p, _ in pairs}
+    if not any(ibvs_better):
+        why = ""
+    elif feedback == {"transpose"}:
+        why = (
+            " The paper's law feeds the error back through `J^T`, whose weakest direction here "
+            "is the depth (the distance to the target), so that component converges slowly; the "
+            "baseline's `J#` feedback converges at the same rate in every direction."
+        )
+    else:
+        why = (
+            f" The passivity law ran with the {' and '.join(sorted(feedback))} feedback "
+            "(`controller.feedback`)."
+        )
     return [
         f"- **Against the IBVS baseline** (same objectives, gain set by the rule stated in its "
         f"section): {verdict} (passivity law against IBVS: {figures}).{why}"
