@@ -62,6 +62,7 @@ from pbvs_pin.control.encoders import TIME_TOLERANCE, EncoderHistory
 from pbvs_pin.control.gating import FaultCounts, InnovationGate
 from pbvs_pin.control.kinematic import ControlOutput
 from pbvs_pin.control.secondary import (
+    BUILT_IN,
     SecondaryObjective,
     secondary_input,
     secondary_vector,
@@ -244,6 +245,8 @@ class Controller:
         self.compensator = compensator(settings, model)
         built_in = secondary_objectives(settings, model, self.posture_target)
         self.objectives = [*built_in, *self.user_objectives]
+        compiled = [objective for objective in built_in if type(objective) in BUILT_IN]
+        in_python = (*(o for o in built_in if type(o) not in BUILT_IN), *self.user_objectives)
         self._arm_limits = model.arm_position_limits()
         spec = settings.estimator
         self.counts = FaultCounts()
@@ -257,10 +260,10 @@ class Controller:
         )
         self.history.clear()
         self.fused = None
-        if FusedControlStep.supports(self.law, built_in):
+        if FusedControlStep.supports(self.law, compiled):
             self.fused = FusedControlStep(
-                model, self.features, self.xi_d, self.law, self.compensator, built_in,
-                self.user_objectives,
+                model, self.features, self.xi_d, self.law, self.compensator, compiled,
+                in_python,
             )  # fmt: skip
         self.laser = np.array([np.inf, 0.0])
         self._t = -np.inf

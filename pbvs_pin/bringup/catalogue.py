@@ -208,10 +208,25 @@ def build_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileMani
             camera=camera,
         )
         robot.home_arm = np.array(recipe.home)
+        robot.support = floor_support(robot)
         return robot
     robot = MobileManipulator.from_urdf(name, camera=camera)
-    robot.home_arm = compute_home(robot)
+    robot.support = floor_support(robot)
+    robot.home_arm = compute_home(robot, support=robot.support)
     return robot
+
+
+def floor_support(robot: MobileManipulator) -> np.ndarray | None:
+    """The support polygon ``robot`` stands on: the MuJoCo plant's floor contacts.
+
+    Vertices [m] counter-clockwise in the platform frame, shape (m, 2)
+    (:func:`pbvs_pin.plant.mujoco_support.support_polygon`); None when it has fewer than three
+    (nothing to stand on with an inside) or the robot does not stand on wheels there.
+    """
+    from pbvs_pin.plant.mujoco_support import support_polygon
+
+    support = support_polygon(robot)
+    return support if support is not None and len(support) >= 3 else None
 
 
 def load_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileManipulator:

@@ -77,6 +77,7 @@ from pbvs_pin.exceptions import GainError, HomeNotFound
 from pbvs_pin.model.joint_angles import arm_difference
 from pbvs_pin.model.manipulability import arm_manipulability
 from pbvs_pin.model.robot import MobileManipulator
+from pbvs_pin.model.support import COM_MARGIN
 from pbvs_pin.validation import as_count, as_instance, as_rows, convert_fields
 
 CAMERA_FORWARD = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
@@ -142,7 +143,7 @@ class HomeCriteria:
     limit_margin: float = 0.1
     posture_weight: float = 0.2
     max_forward_error: float = np.radians(10.0)
-    com_margin: float | None = 0.05
+    com_margin: float | None = COM_MARGIN
     effort_margin: float | None = 0.2
 
     def __post_init__(self) -> None:

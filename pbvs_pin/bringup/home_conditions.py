@@ -14,37 +14,17 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-import pinocchio as pin
 
 from pbvs_pin.bringup.holding import holding_rows
 from pbvs_pin.model.robot import MobileManipulator
+from pbvs_pin.model.support import SupportRows
 
 
-class Balance:
+class Balance(SupportRows):
     r"""The centre of mass kept ``margin`` inside a convex support polygon, platform at the origin.
 
-    Rows :math:`s_i(\theta) = n_i^\top (c_{xy}(\theta) - v_i) - \text{margin} \ge 0`, with
-    ``v_i`` the polygon's vertices (counter-clockwise), ``n_i`` its edges' inward unit normals
-    and ``c`` Pinocchio's centre of mass of the whole robot (``pin.centerOfMass``), whose
-    Jacobian ``pin.jacobianCenterOfMass`` gives :math:`\partial s / \partial \theta`.
+    The rows of :class:`pbvs_pin.model.support.SupportRows`, kept non-negative.
     """
-
-    def __init__(self, robot: MobileManipulator, vertices: np.ndarray, margin: float) -> None:
-        self.robot, self.margin = robot, margin
-        edges = np.roll(vertices, -1, axis=0) - vertices
-        normals = np.stack([-edges[:, 1], edges[:, 0]], axis=1)
-        self.normals = normals / np.linalg.norm(normals, axis=1)[:, None]
-        self.offsets = np.sum(self.normals * vertices, axis=1) + margin
-        self.arm_columns = robot.selection[:, robot.n_base :]
-
-    def slack(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Rows ``s`` [m], shape (k,), and their Jacobian in the arm joints, shape (k, n_arm)."""
-        robot = self.robot
-        jacobian = pin.jacobianCenterOfMass(robot.model, robot.data, q)
-        centre = robot.data.com[0][:2]
-        return self.normals @ centre - self.offsets, self.normals @ (
-            jacobian[:2] @ self.arm_columns
-        )
 
     def shortfall(self, q: np.ndarray) -> float:
         """How far [m] the centre of mass lacks the margin (0 when it keeps it)."""

@@ -31,7 +31,7 @@ from typing import Protocol
 
 import numpy as np
 
-from pbvs_pin.bringup.catalogue import build_robot
+from pbvs_pin.bringup.catalogue import build_robot, floor_support
 from pbvs_pin.bringup.holding import warn_overloaded
 from pbvs_pin.bringup.home import compute_home
 from pbvs_pin.bringup.placement import warn_placement
@@ -257,11 +257,13 @@ def build_robot_from(
         if isinstance(err, DriveAxleNotFound):
             problem += DRIVE_WAYS_OUT
         raise ScenarioError(spec.source, f"robot.{field}", problem) from err
+    if spec.form != "name":
+        robot.support = floor_support(robot)
     if spec.home is not None:
         robot.home_arm = arm_posture(spec.source, "robot.home", robot, spec.home)
     elif spec.form != "name":
         try:
-            robot.home_arm = compute_home(robot)
+            robot.home_arm = compute_home(robot, support=robot.support)
         except HomeNotFound as err:
             raise ScenarioError(spec.source, "robot.home", str(err)) from err
     if spec.form != "name":

@@ -259,7 +259,7 @@ class SecondaryObjective(abc.ABC):
         """This objective's part of ``Lambda``. Shape (n,)."""
 
 
-def _check_positive(owner: str, **values: float) -> None:
+def check_positive(owner: str, **values: float) -> None:
     """GainError naming the first non-positive or non-finite value."""
     for name, value in values.items():
         if not np.isfinite(value) or value <= 0:
@@ -293,7 +293,7 @@ class ObstacleAvoidance(SecondaryObjective):
         mass: float = 0.5,
         damping: float = 1.0,
     ) -> None:
-        _check_positive("ObstacleAvoidance", k_u=k_u, k_w=k_w, d0=d0, mass=mass, damping=damping)
+        check_positive("ObstacleAvoidance", k_u=k_u, k_w=k_w, d0=d0, mass=mass, damping=damping)
         self.k_u, self.k_w, self.d0 = k_u, k_w, d0
         self.mass, self.damping = mass, damping
         self.velocity = np.zeros(3)
@@ -333,7 +333,7 @@ class ArmPosture(SecondaryObjective):
 
     def __post_init__(self) -> None:
         """Reject a non-positive gain."""
-        _check_positive("ArmPosture", gain=self.gain)
+        check_positive("ArmPosture", gain=self.gain)
 
     def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
         """``[0, ..., k (theta_d - theta)]``."""
@@ -367,7 +367,7 @@ class JointLimitAvoidance(SecondaryObjective):
 
     def __post_init__(self) -> None:
         """Reject non-positive margin or gain."""
-        _check_positive("JointLimitAvoidance", margin=self.margin, gain=self.gain)
+        check_positive("JointLimitAvoidance", margin=self.margin, gain=self.gain)
 
     def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
         """Restoring rates near the limits."""
@@ -387,7 +387,7 @@ class BaseHeading(SecondaryObjective):
     """
 
     def __init__(self, gain: float = 1.0, d0: float = 0.0) -> None:
-        _check_positive("BaseHeading", gain=gain)
+        check_positive("BaseHeading", gain=gain)
         self.gain, self.d0 = gain, d0
 
     def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:

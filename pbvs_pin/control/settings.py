@@ -27,6 +27,7 @@ from pbvs_pin.control.secondary import (
     arm_depth_reach,
     heading_factor,
 )
+from pbvs_pin.control.support import KeepSupported
 from pbvs_pin.control.tables import (
     CameraSection,
     CompensationSection,
@@ -267,4 +268,6 @@ def secondary_objectives(
         if gain > 0.0:  # an arm that moves the camera along its axis: off, bit for bit
             d0 = spec.d0 if spec.obstacle_avoidance else 0.0
             objectives.append(BaseHeading(gain, d0))
+    if spec.support and model.support is not None:
+        objectives.append(KeepSupported(model, model.support, spec.k_support))
     return objectives

@@ -227,7 +227,8 @@ class FusedControlStep:
         compensator: The dynamic compensator (its loop model, rows, ``K_D``).
         objectives: The settings' built-in secondary objectives (at most one of each kind),
             computed inside the compiled step.
-        user_objectives: The user's own objectives, evaluated in Python before each call
+        user_objectives: The objectives evaluated in Python before each call: the settings'
+            others (:class:`~pbvs_pin.control.support.KeepSupported`) and the user's own
             (whatever their kind).
     """
 

@@ -292,6 +292,18 @@ class SecondarySection(Section):
     impedance_mass: float = key(0.5, "Inertia m of the impedance Z [s].", sign=POSITIVE)
     impedance_damping: float = key(1.0, "Damping b of the impedance Z [1].", sign=POSITIVE)
     k_lambda: float = key(1.0, "k_Lambda of eq. (19) [1/s].", sign=POSITIVE)
+    support: bool = key(
+        True,
+        "Keep the centre of mass 0.05 m inside the platform's support polygon "
+        "(pbvs_pin.control.support; for a robot whose support is known: a two-wheel or "
+        "skid-steer platform with a URDF) [bool].",
+    )
+    k_support: float = key(
+        10.0,
+        "k_s [1/s]: the rate at which the support objective closes the centre of mass's "
+        "shortfall of its margin.",
+        sign=POSITIVE,
+    )
     k_heading: float = key(
         1.0,
         "k_psi [1/s]: turn a two-wheel platform to where the camera looks "

@@ -120,6 +120,11 @@ class MobileManipulator:
             (``geometry_density``).
         mounted_links: Links of the arm mounted by :meth:`assemble` (their names in the
             model); empty when the platform carries its own arm.
+        support: The platform's support polygon on the floor, vertices [m] counter-clockwise
+            in the platform frame, shape (m, 2) (:mod:`pbvs_pin.model.support`); set by
+            :func:`pbvs_pin.bringup.catalogue.build_robot` and a scenario's ``[robot]`` from
+            the MuJoCo plant's floor contacts; None when not known (a holonomic base, a robot
+            built from a Pinocchio model directly).
     """
 
     def __init__(
@@ -177,6 +182,7 @@ class MobileManipulator:
         self.repaired_inertias: tuple[str, ...] = ()
         self.filled_inertias: tuple[str, ...] = ()
         self.mounted_links: tuple[str, ...] = ()
+        self.support: np.ndarray | None = None
 
     # ------------------------------------------------------------------ builders
     @classmethod
