@@ -26,6 +26,7 @@ BASE = {"duration": 2.0}
 OBSTACLE = {"secondary.obstacle_avoidance": True, "secondary.d0": 3.0}
 NEAR_LIMIT = {"robot.initial_arm": [0.0, 0.0, 0.55]}  # 0.05 rad below the elbow's upper limit
 ROLLING = {"robot.name": "pioneer_panda"}
+HEAVY_ARM = {"robot.name": "pioneer_ur5"}  # its home's centre of mass at the support's margin
 TRANSPOSE = {"controller.feedback": "transpose"}  # the paper's law: its loop gain k T lambda_max
 STRETCH = {  # an arm that cannot move the camera along its optical axis: the heading term acts
     "robot.name": "",
@@ -103,6 +104,8 @@ CASES = {  # key: (context, new value)
     "secondary.posture": ({}, False),
     "secondary.posture_target": ({}, "max_manipulability"),
     "secondary.joint_limits": (NEAR_LIMIT, False),
+    "secondary.support": (HEAVY_ARM, False),
+    "secondary.k_support": (HEAVY_ARM, 2.0),
     "secondary.k_uobs": (OBSTACLE, 1.0),
     "secondary.k_wobs": (OBSTACLE, 1.5),
     "secondary.d0": (OBSTACLE, 2.5),

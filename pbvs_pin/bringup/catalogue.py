@@ -196,7 +196,9 @@ def build_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileMani
     from pbvs_pin.model.robot import MobileManipulator
 
     if name == REFERENCE_ROBOT:
-        return MobileManipulator.from_urdf(str(shipped_urdf(name)), camera=camera)
+        robot = MobileManipulator.from_urdf(str(shipped_urdf(name)), camera=camera)
+        robot.support = floor_support(robot)
+        return robot
     if name in RECIPES:
         recipe = RECIPES[name]
         robot = MobileManipulator.assemble(

@@ -269,5 +269,5 @@ def secondary_objectives(
             d0 = spec.d0 if spec.obstacle_avoidance else 0.0
             objectives.append(BaseHeading(gain, d0))
     if spec.support and model.support is not None:
-        objectives.append(KeepSupported(model, model.support, spec.k_support))
+        objectives.append(KeepSupported(model, model.support, spec.k_support, target=target))
     return objectives

@@ -51,16 +51,29 @@ class KeepSupported(SecondaryObjective):
         support: np.ndarray,
         gain: float = 10.0,
         margin: float = COM_MARGIN,
+        target: np.ndarray | None = None,
     ) -> None:
         """Rows of ``model`` on ``support`` (shape (m, 2), m >= 3, counter-clockwise) [m].
+
+        Each edge keeps ``margin`` [m], or less where the posture target ``target`` (``theta_d``
+        of eq. (19), shape (n_arm,)) keeps less: a shipped recipe's home (the Z1's, the Kinova's)
+        stands closer to an edge than the computed homes' 0.05 m, and a margin the target does
+        not keep would hold the arm away from it for good (measured: the Z1 and Kinova arms
+        0.73 and 0.46 rad from ``theta_d`` at the end of Experiment 2).
 
         Raises:
             GainError: If ``gain`` is not positive and finite.
         """
         check_positive("KeepSupported", gain=gain)
-        self.rows = SupportRows(model, np.asarray(support, dtype=float), margin)
-        self.gain = gain
+        support = np.asarray(support, dtype=float)
         self._data = model.model.createData()
+        margins = np.full(len(support), float(margin))
+        if target is not None:
+            q = at_origin(model.with_arm_positions(model.neutral(), target))
+            at_target = SupportRows(model, support, 0.0).slack(q, self._data)[0]
+            margins = np.minimum(margins, np.maximum(at_target, 0.0))
+        self.rows = SupportRows(model, support, margins)
+        self.gain = gain
 
     def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
         """``[0, ..., Lambda_arm]``: zero unless a row is below its margin. Shape (n,)."""

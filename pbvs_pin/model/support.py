@@ -42,8 +42,13 @@ class SupportRows:
             Shape (nv, n_arm).
     """
 
-    def __init__(self, robot: MobileManipulator, vertices: np.ndarray, margin: float) -> None:
-        """Rows for ``vertices`` (shape (m, 2), m >= 3, counter-clockwise) and ``margin`` [m]."""
+    def __init__(
+        self, robot: MobileManipulator, vertices: np.ndarray, margin: float | np.ndarray
+    ) -> None:
+        """Rows for ``vertices`` (shape (m, 2), m >= 3, counter-clockwise) and ``margin``.
+
+        ``margin`` [m]: one for every edge, or one per edge (shape (m,)).
+        """
         self.robot, self.margin = robot, margin
         edges = np.roll(vertices, -1, axis=0) - vertices
         normals = np.stack([-edges[:, 1], edges[:, 0]], axis=1)
