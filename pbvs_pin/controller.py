@@ -62,10 +62,10 @@ from pbvs_pin.control.encoders import TIME_TOLERANCE, EncoderHistory
 from pbvs_pin.control.gating import FaultCounts, InnovationGate
 from pbvs_pin.control.kinematic import ControlOutput
 from pbvs_pin.control.secondary import (
-    BUILT_IN,
     SecondaryObjective,
     secondary_input,
     secondary_vector,
+    split_objectives,
     user_objectives,
 )
 from pbvs_pin.control.settings import (
@@ -245,8 +245,7 @@ class Controller:
         self.compensator = compensator(settings, model)
         built_in = secondary_objectives(settings, model, self.posture_target)
         self.objectives = [*built_in, *self.user_objectives]
-        compiled = [objective for objective in built_in if type(objective) in BUILT_IN]
-        in_python = (*(o for o in built_in if type(o) not in BUILT_IN), *self.user_objectives)
+        compiled, in_python = split_objectives(built_in, self.user_objectives)
         self._arm_limits = model.arm_position_limits()
         spec = settings.estimator
         self.counts = FaultCounts()

@@ -36,13 +36,11 @@ def test_prediction_on_the_mujoco_plant():
     stated(
         f"Experiment 2's oscillation above 0.5 Hz {cyton[0]:.2f} and {cyton[1]:.2f} px RMS "
         f"(the report flags 3 px), TIAGo's {tiago[0]:.2f} and {tiago[1]:.2f} px; `pioneer_ur5` "
-        f"Experiment 4 ended up to {ur5[0]:.2f} px off over the last 5 s without prediction, "
-        "and tipped over with it"
+        f"Experiment 4 ended up to {ur5[0]:.2f} and {ur5[1]:.2f} px off over the last 5 s"
     )
-    for without, with_prediction in (cyton, tiago):  # prediction lowers each
+    for without, with_prediction in (cyton, tiago, ur5):  # prediction lowers each
         assert with_prediction < without
-    assert max(cyton[1], tiago[1]) < OSCILLATION_FLAG_PX
-    assert ur5[1] > 100 * ur5[0]  # a fallen robot's error (the gallery's table)
+    assert max(cyton[1], tiago[1]) < OSCILLATION_FLAG_PX and ur5[1] < 0.5  # the claim: 0.5 px
 
 
 def test_payload_with_integral_servos():
@@ -82,8 +80,9 @@ def test_tiago_pro_on_the_mujoco_plant():
 
 
 def test_unshipped_arms_on_the_mujoco_plant():
-    """The Reach Bravo 7 holds; the UR10, its arm on the platform, loses the target in all four
-    experiments (the Pioneer tips under the heavy arm, as with the UR5)."""
+    """The Reach Bravo 7 holds; the UR10, its arm on the platform, loses the target in
+    Experiments 2 and 3 (the Pioneer tips under the heavy arm, the support objective
+    notwithstanding)."""
     def runs(arm: str) -> list[dict]:
         values = robot_values(unshipped_arm(arm))
         return [run(name, **values, **{"plant.engine": "mujoco"})[0] for name in EXPERIMENTS]
@@ -93,8 +92,8 @@ def test_unshipped_arms_on_the_mujoco_plant():
     stated(f"the unshipped Reach Bravo 7 ends Experiments 1-4 at {bravo[0]:.2f}, {bravo[1]:.2f}, "
            f"{bravo[2]:.2f} and {bravo[3]:.2f} px", "limitations")  # fmt: skip
     lost = [summary["target_lost_samples"] for summary in runs("ur10")]
-    assert min(lost) > 0
+    assert lost[1] > 0 and lost[2] > 0 and lost[0] == lost[3] == 0  # the support holds 1 and 4
     stated(
-        f"with the balanced law it loses the target in all four ({lost[0]}, {lost[1]}, "
-        f"{lost[2]} and {lost[3]} samples", "limitations",
-    )  # fmt: skip
+        f"it loses the target in Experiments 2 and 3 ({lost[1]} and {lost[2]} samples",
+        "limitations",
+    )

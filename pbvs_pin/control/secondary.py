@@ -406,6 +406,18 @@ BUILT_IN = (ArmPosture, BaseHeading, JointLimitAvoidance, ObstacleAvoidance)
 objectives (of any kind) are evaluated in Python at each step (:func:`contribution_of`)."""
 
 
+def split_objectives(
+    built_in: Sequence[SecondaryObjective], users: Sequence[SecondaryObjective]
+) -> tuple[list[SecondaryObjective], tuple[SecondaryObjective, ...]]:
+    """The objectives the compiled step computes, and those evaluated in Python before it.
+
+    Compiled: the :data:`BUILT_IN` kinds; in Python: the settings' others (the support
+    objective), then the user's own.
+    """
+    compiled = [objective for objective in built_in if type(objective) in BUILT_IN]
+    return compiled, (*(o for o in built_in if type(o) not in BUILT_IN), *users)
+
+
 def contribution_of(
     objective: SecondaryObjective, state: SecondaryInput, n_base: int, n: int
 ) -> np.ndarray:

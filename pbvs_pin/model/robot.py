@@ -116,15 +116,10 @@ class MobileManipulator:
             included), for an independent plant such as :mod:`pbvs_pin.plant.mujoco_plant`; None
             when the robot was built from a Pinocchio model directly.
         repaired_inertias: Links whose inertia was repaired on loading (``repair_inertia``).
-        filled_inertias: Links given the inertia of their geometry on loading
-            (``geometry_density``).
+        filled_inertias: Links given their geometry's inertia on loading (``geometry_density``).
         mounted_links: Links of the arm mounted by :meth:`assemble` (their names in the
             model); empty when the platform carries its own arm.
-        support: The platform's support polygon on the floor, vertices [m] counter-clockwise
-            in the platform frame, shape (m, 2) (:mod:`pbvs_pin.model.support`); set by
-            :func:`pbvs_pin.bringup.catalogue.build_robot` and a scenario's ``[robot]`` from
-            the MuJoCo plant's floor contacts; None when not known (a holonomic base, a robot
-            built from a Pinocchio model directly).
+        support: Support polygon [m] in the platform frame (m, 2) (:mod:`.support`), or None.
     """
 
     def __init__(
