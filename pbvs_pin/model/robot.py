@@ -119,7 +119,7 @@ class MobileManipulator:
         filled_inertias: Links given their geometry's inertia on loading (``geometry_density``).
         mounted_links: Links of the arm mounted by :meth:`assemble` (their names in the
             model); empty when the platform carries its own arm.
-        support: Support polygon [m] in the platform frame (m, 2) (:mod:`.support`), or None.
+        support: Support polygon [m], platform frame, (m, 2) (:mod:`pbvs_pin.model.support`).
     """
 
     def __init__(
