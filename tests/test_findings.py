@@ -91,6 +91,15 @@ def test_the_baseline_comparison_says_which_law_wins_with_its_figures():
     text = findings_section([summary("experiment1")], [], pairs, [], [])
     assert "the classic IBVS baseline has the smaller RMS error after 2 s in 1 of 2" in text
     assert "Experiment 1 2.00 against 1.50 px, Experiment 2 1.00 against 3.00 px" in text
+    assert "weakest direction here is the depth" in text  # the paper's law's reason
+
+
+def test_the_baseline_comparison_gives_the_jt_reason_only_for_the_papers_law():
+    pairs = [("experiment1", {"rms_after_transient_px": 2.0, "feedback": "balanced"},
+              {"rms_after_transient_px": 1.5, "feedback": "balanced"})]  # fmt: skip
+    text = findings_section([summary("experiment1")], [], pairs, [], [])
+    assert "weakest direction" not in text
+    assert "The passivity law ran with the balanced feedback" in text
 
 
 def test_compensation_says_what_it_changes_and_where_it_is_worse():

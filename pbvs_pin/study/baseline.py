@@ -92,7 +92,7 @@ def comparison_figures(log: RunLog) -> dict[str, Any]:
         :func:`pbvs_pin.sim.log.command_limited`; the classic IBVS law reaches its limits
         through the compensation), and ``v_ref_at_limit_samples``, those in which a component
         of the commanded velocity ``v_ref`` sits at its limit
-        (:data:`pbvs_pin.sim.log.AT_LIMIT`).
+        (:data:`pbvs_pin.sim.log.AT_LIMIT`); ``feedback``, the run's ``controller.feedback``.
     """
     t = log["t"]
     largest = np.max(np.abs(log["xi_true"] - log["xi_d"]), axis=1)
@@ -115,6 +115,7 @@ def comparison_figures(log: RunLog) -> dict[str, Any]:
         "v_ref_at_limit_samples": int(
             np.count_nonzero(np.any(np.abs(log["v_ref"]) >= AT_LIMIT * limits, axis=1))
         ),
+        "feedback": log.meta.get("feedback", "transpose"),
     }
 
 
