@@ -16,6 +16,7 @@ import json
 
 import numpy as np
 import pytest
+from docs_figures import PAPERS_LAW  # the paper's law: its loop gain k T lambda_max
 
 from pbvs_pin.perception.detection import ColourDetector, register_detector
 from pbvs_pin.sim.loop import simulate
@@ -27,7 +28,6 @@ OBSTACLE = {"secondary.obstacle_avoidance": True, "secondary.d0": 3.0}
 NEAR_LIMIT = {"robot.initial_arm": [0.0, 0.0, 0.55]}  # 0.05 rad below the elbow's upper limit
 ROLLING = {"robot.name": "pioneer_panda"}
 HEAVY_ARM = {"robot.name": "pioneer_ur5"}  # its home's centre of mass at the support's margin
-TRANSPOSE = {"controller.feedback": "transpose"}  # the paper's law: its loop gain k T lambda_max
 STRETCH = {  # an arm that cannot move the camera along its optical axis: the heading term acts
     "robot.name": "",
     "robot.base": "package://stretch_urdf/RE1V0/stretch_description_RE1V0_tool_none.urdf",
@@ -86,17 +86,17 @@ CASES = {  # key: (context, new value)
     "estimator.smoothing": ({}, 0.5),
     "estimator.process_noise": ({}, 0.0),  # the default is 0.03: 0 keeps the fixed gains
     "controller.law": ({}, "ibvs"),
-    "controller.k": (TRANSPOSE, [0.3]),
+    "controller.k": (PAPERS_LAW, [0.3]),
     "controller.k1": ({}, [0.5, 0.8, 0.2, 0.2, 0.2]),
     "controller.k2": ({}, [0.5]),
-    "controller.feature_scale": (TRANSPOSE, 120.0),
+    "controller.feature_scale": (PAPERS_LAW, 120.0),
     "controller.weights": ({}, [2.0]),
     "controller.feedback": ({}, "pseudoinverse"),
     "controller.ibvs_gain": ({"controller.law": "ibvs"}, 2.0),
     "controller.rate": ({}, 200.0),
     "controller.upright": (ROLLING, False),
     "controller.upright_rate": ({**ROLLING, "robot.initial_arm": None}, 1.0),
-    "controller.loop_gain_margin": (TRANSPOSE, 0.5),
+    "controller.loop_gain_margin": (PAPERS_LAW, 0.5),
     "compensation.mode": ({}, "all"),
     "compensation.k_d": ({}, [2.0]),
     "compensation.derivative_time_constant": ({}, 0.1),

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from docs_figures import PAPERS_LAW
 
 from pbvs_pin.bringup.catalogue import RECIPES
 from pbvs_pin.cli import main
@@ -129,7 +130,7 @@ def _asked_loop_gain(name: str) -> tuple[float, float]:
     """Median loop gain the paper's law asks for over Experiment 4's first 10 s, and the net's
     share."""
     robot_file = next(robot for robot in load_zoo(ROBOTS) if robot.name == name)
-    values = {**robot_file.scenario_values, "controller.feedback": "transpose"}
+    values = {**robot_file.scenario_values, **PAPERS_LAW}
     scenario = load_scenario("experiment4").with_values(**values, duration=10.0)
     spec = RobotSection.from_toml(robot_file.table, str(robot_file.path))
     with warnings.catch_warnings():

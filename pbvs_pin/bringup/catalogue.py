@@ -195,10 +195,6 @@ def build_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileMani
     from pbvs_pin.bringup.home import compute_home
     from pbvs_pin.model.robot import MobileManipulator
 
-    if name == REFERENCE_ROBOT:
-        robot = MobileManipulator.from_urdf(str(shipped_urdf(name)), camera=camera)
-        robot.support = floor_support(robot)
-        return robot
     if name in RECIPES:
         recipe = RECIPES[name]
         robot = MobileManipulator.assemble(
@@ -210,11 +206,12 @@ def build_robot(name: str, camera: CameraIntrinsics | None = None) -> MobileMani
             camera=camera,
         )
         robot.home_arm = np.array(recipe.home)
-        robot.support = floor_support(robot)
-        return robot
-    robot = MobileManipulator.from_urdf(name, camera=camera)
+    else:
+        source = str(shipped_urdf(name)) if name == REFERENCE_ROBOT else name
+        robot = MobileManipulator.from_urdf(source, camera=camera)
     robot.support = floor_support(robot)
-    robot.home_arm = compute_home(robot, support=robot.support)
+    if name != REFERENCE_ROBOT and name not in RECIPES:
+        robot.home_arm = compute_home(robot, support=robot.support)
     return robot
 
 

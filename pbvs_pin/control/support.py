@@ -69,7 +69,7 @@ class KeepSupported(SecondaryObjective):
         self._data = model.model.createData()
         margins = np.full(len(support), float(margin))
         if target is not None:
-            q = at_origin(model.with_arm_positions(model.neutral(), target))
+            q = model.with_arm_positions(model.neutral(), target)  # platform at the origin
             at_target = SupportRows(model, support, 0.0).slack(q, self._data)[0]
             margins = np.minimum(margins, np.maximum(at_target, 0.0))
         self.rows = SupportRows(model, support, margins)

@@ -19,6 +19,7 @@ from pbvs_pin.control.kinematic import FEEDBACK_LAWS, ServoGains
 from pbvs_pin.control.upright import LOOP_GAIN_MARGIN, RESTORING_RATE
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.model.camera import CameraIntrinsics
+from pbvs_pin.model.support import COM_MARGIN
 from pbvs_pin.perception.estimation import NOISE_ADAPTIVE, velocity_filter
 from pbvs_pin.toml_keys import NON_NEGATIVE, POSITIVE, Section, key
 
@@ -294,7 +295,7 @@ class SecondarySection(Section):
     k_lambda: float = key(1.0, "k_Lambda of eq. (19) [1/s].", sign=POSITIVE)
     support: bool = key(
         True,
-        "Keep the centre of mass 0.05 m inside the platform's support polygon "
+        f"Keep the centre of mass {COM_MARGIN} m inside the platform's support polygon "
         "(pbvs_pin.control.support; for a robot whose support is known: a two-wheel or "
         "skid-steer platform with a URDF) [bool].",
     )
