@@ -319,7 +319,9 @@ Two uses:
   README's) leaves them out. The other files took 160 of the run's 917 s of worker time.
 - They run first, in this order. With ``--dist loadfile`` a file runs whole on one worker;
   handing out the longest files first lets the two workers finish together (a 100 s file
-  dealt last kept one worker busy alone for up to 100 s)."""
+  dealt last kept one worker busy alone for up to 100 s). ``pyproject.toml`` asks
+  pytest-xdist to keep this order (``--no-loadscope-reorder``; by default it deals the files
+  with the most tests first)."""
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
