@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from docs_figures import (
     EXPERIMENTS,
-    OSCILLATION_FLAG_PX,
     run,
     stated,
 )
@@ -18,29 +17,6 @@ from test_mujoco_plant import _mean_body_velocity, _plant
 
 from pbvs_pin.sim.scenario import load_scenario
 from pbvs_pin.sim.setup import SETTLE_TIME, build
-
-
-def test_prediction_on_the_mujoco_plant():
-    def summary(robot: str, experiment: str, predict: bool) -> dict:
-        values = {"robot.name": robot, "plant.engine": "mujoco", "estimator.predict": predict}
-        return run(experiment, **values)[0]
-
-    cyton, tiago = (
-        [summary(robot, "experiment2", p)["oscillation_rms_px"] for p in (False, True)]
-        for robot in ("pioneer_cyton", "tiago")
-    )
-    ur5 = [
-        summary("pioneer_ur5", "experiment4", p)["max_abs_error_final_window_px"]
-        for p in (False, True)
-    ]
-    stated(
-        f"Experiment 2's oscillation above 0.5 Hz {cyton[0]:.2f} and {cyton[1]:.2f} px RMS "
-        f"(the report flags 3 px), TIAGo's {tiago[0]:.2f} and {tiago[1]:.2f} px; `pioneer_ur5` "
-        f"Experiment 4 ended up to {ur5[0]:.2f} and {ur5[1]:.2f} px off over the last 5 s"
-    )
-    for without, with_prediction in (cyton, tiago, ur5):  # prediction lowers each
-        assert with_prediction < without
-    assert max(cyton[1], tiago[1]) < OSCILLATION_FLAG_PX and ur5[1] < 0.5  # the claim: 0.5 px
 
 
 def test_payload_with_integral_servos():
