@@ -103,36 +103,6 @@ def test_the_loop_gain_net():
     assert without["oscillation_rms_px"] > OSCILLATION_FLAG_PX
 
 
-def test_the_servos_leave_no_oscillation():
-    second, third = (run(name)[0]["oscillation_rms_px"] for name in EXPERIMENTS[1:3])
-    stated(f"now {second:.2f} and {third:.2f} px RMS")
-    assert max(second, third) < OSCILLATION_FLAG_PX
-
-
-def test_compensating_the_arm_too():
-    platform = run("experiment4")[0]
-    arm_too = [run(name, **{"compensation.mode": "all"})[0] for name in EXPERIMENTS]
-    stated(
-        f"the arm's |v - u| RMS rose from {platform['velocity_tracking_rms_arm']:.4f} "
-        f"(`platform`) to {arm_too[3]['velocity_tracking_rms_arm']:.4f} and the error over the "
-        f"last 5 s from {platform['max_abs_error_final_window_px']:.2f} to "
-        f"{arm_too[3]['max_abs_error_final_window_px']:.2f} px",
-        "limitations",
-    )
-    assert arm_too[3]["velocity_tracking_rms_arm"] > platform["velocity_tracking_rms_arm"]
-    error = "max_abs_error_final_window_px"
-    assert arm_too[3][error] > platform[error]  # "rose": compensating the arm does worse
-    oscillation = [summary["oscillation_rms_px"] for summary in arm_too]
-    assert 0.0 < min(oscillation)
-    over = [i + 1 for i, rms in enumerate(oscillation) if rms >= OSCILLATION_FLAG_PX]
-    stated(
-        f"oscillate by {min(oscillation):.1f}-{max(oscillation):.1f} px RMS above 0.5 Hz "
-        f"(Experiments {' and '.join(map(str, over)) or 'none'} at or above the rules' "
-        f"{OSCILLATION_FLAG_PX:.0f} px)",
-        "limitations",
-    )
-
-
 def test_the_skid_steer_spin():
     robot = load_robot("pioneer_cyton")
     chi = robot.base.track_factor
