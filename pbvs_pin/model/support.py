@@ -49,7 +49,7 @@ class SupportRows:
 
         ``margin`` [m]: one for every edge, or one per edge (shape (m,)).
         """
-        self.robot, self.margin = robot, margin
+        self.robot = robot
         edges = np.roll(vertices, -1, axis=0) - vertices
         normals = np.stack([-edges[:, 1], edges[:, 0]], axis=1)
         self.normals = normals / np.linalg.norm(normals, axis=1)[:, None]
