@@ -61,6 +61,7 @@ from pbvs_pin.control.balanced import joint_room
 from pbvs_pin.control.encoders import TIME_TOLERANCE, EncoderHistory
 from pbvs_pin.control.gating import FaultCounts, InnovationGate
 from pbvs_pin.control.kinematic import ControlOutput
+from pbvs_pin.control.odometry import OdometryJumps
 from pbvs_pin.control.secondary import (
     SecondaryObjective,
     secondary_input,
@@ -84,12 +85,13 @@ from pbvs_pin.model.camera import MIN_DEPTH
 from pbvs_pin.model.robot import UNIT_TOLERANCE, MobileManipulator
 from pbvs_pin.perception.camera_frame import CameraFrame
 from pbvs_pin.perception.estimation import velocity_filter
-from pbvs_pin.perception.features import ImageMeasurement, TwoSphereFeatures
+from pbvs_pin.perception.features import (
+    FeatureSet,
+    ImageMeasurement,
+    TwoSphereFeatures,
+    checked_feature_set,
+)
 from pbvs_pin.validation import as_array, as_instance, as_number, as_numbers
-
-JUMP_SLACK = (0.05, 0.1)
-"""Platform motion in one step [m, rad] beyond the velocity limits' reach that counts as an
-odometry jump."""
 
 FLOAT64 = np.dtype(np.float64)
 """The dtype of the arrays the quick input checks accept as they are."""
@@ -159,11 +161,20 @@ class Controller:
             a built-in kind), added to the settings' in ``Lambda`` (eq. 16): each is called
             once a step, never while the controller is built; :meth:`reset` keeps them as
             they are (their own state is theirs to reset).
+        features: Your own :class:`~pbvs_pin.perception.features.FeatureSet` (which
+            coordinates of the frames' ``features.n_points`` points form ``xi``); None: the
+            paper's ``[u1, v1, v2]`` of two spheres, with the settings' ``target.xi_d``.
+        xi_d: The desired features of ``features`` [px], shape (r,); required with it.
+
+    Raises:
+        WrongType: If ``robot``, ``settings``, ``objectives`` or ``features`` is not one.
+        GainError: If ``features`` has no valid rows or comes without ``xi_d``.
+        ShapeError: If ``xi_d`` has not one entry per feature.
 
     Attributes:
         model: The controller's model of the robot (with the settings' intrinsics).
         settings: The settings.
-        features: Feature set of the two spheres.
+        features: The feature set: the paper's two spheres unless you gave your own.
         xi_d: Desired features [px]. Shape (r,).
         posture_target: ``theta_d`` of eq. (19) [rad or m]. Shape (n_arm,).
         law: The kinematic controller (eq. 34, or the IBVS baseline).
@@ -182,6 +193,8 @@ class Controller:
         settings: ControllerSettings | None = None,
         announce: bool = True,
         objectives: Sequence[SecondaryObjective] = (),
+        features: FeatureSet | None = None,
+        xi_d: npt.ArrayLike | None = None,
     ) -> None:
         robot = as_instance("robot", robot, MobileManipulator)
         given = user_objectives(objectives)
@@ -193,14 +206,16 @@ class Controller:
             robot = copy.copy(robot)
             robot.camera = camera
         self.model, self.settings = robot, settings
-        self.features = TwoSphereFeatures(settings.target.diameter)
-        self.xi_d = np.asarray(settings.target.xi_d, dtype=float)
+        if features is None:
+            self.features: FeatureSet = TwoSphereFeatures(settings.target.diameter)
+            self.xi_d = np.asarray(settings.target.xi_d, dtype=float)
+        else:
+            self.features, self.xi_d = checked_feature_set(features, xi_d)
         self.posture_target = posture_target(settings, robot)
         self.period = settings.control_period
         self.history = EncoderHistory(robot.model, settings.history, self.period)
         self._exact = settings.estimator.kind == "exact"
         self._margin_slot = layout.slot(layout.Settings, "loop_gain_margin")
-        self._root_q = _planar_root_slice(robot.model)
         self._nq = robot.model.nq
         self.reset()
         with announce_compiles(announce):
@@ -216,6 +231,8 @@ class Controller:
         robot: MobileManipulator | None = None,
         announce: bool = True,
         objectives: Sequence[SecondaryObjective] = (),
+        features: FeatureSet | None = None,
+        xi_d: npt.ArrayLike | None = None,
     ) -> Controller:
         """The controller a simulation of ``scenario`` runs.
 
@@ -226,6 +243,8 @@ class Controller:
             robot: The controller's model of the robot, replacing the scenario's.
             announce: Print a line on stderr before compiling the kernels.
             objectives: The user's own secondary objectives (as for the constructor).
+            features: Your own feature set (as for the constructor).
+            xi_d: Its desired features [px] (as for the constructor).
 
         Raises:
             ScenarioError: If a value does not fit the robot.
@@ -233,7 +252,8 @@ class Controller:
         if robot is None:
             robot = scenario.robot.build(scenario.camera.intrinsics())
             robot = robot.with_model_error(scenario.model_error.kinematic_scale)
-        return cls(robot, ControllerSettings.from_scenario(scenario), announce, objectives)
+        settings = ControllerSettings.from_scenario(scenario)
+        return cls(robot, settings, announce, objectives, features, xi_d)
 
     def reset(self) -> None:
         """Forget every frame, reading and command: the state of a controller just built."""
@@ -241,7 +261,7 @@ class Controller:
         self.latency = settings.camera.delivery_latency
         """The frames' age on arrival [s] that sets the loop-gain margin; the settings'
         camera latency until a frame arrives."""
-        self.law = kinematic_law(settings, model, self.latency)
+        self.law = kinematic_law(settings, model, self.latency, self.features.size)
         self.compensator = compensator(settings, model)
         built_in = secondary_objectives(settings, model, self.posture_target)
         self.objectives = [*built_in, *self.user_objectives]
@@ -266,11 +286,9 @@ class Controller:
             )  # fmt: skip
         self.laser = np.array([np.inf, 0.0])
         self._t = -np.inf
-        self._previous_root: tuple[float, float, float, float] | None = None
         limits = self.law.velocity_limits
         self._v_bound = tuple((bounds.VELOCITY_BOUND * np.asarray(limits)).tolist())
-        self._jump_limits = (2 * limits[0], 2 * limits[model.n_base - 1])
-        """Twice the platform's speed limits [m/s, rad/s]: beyond, the odometry jumped."""
+        self._odometry = OdometryJumps(model.model, (2 * limits[0], 2 * limits[model.n_base - 1]))
         self._newest_capture = -np.inf
         self._latency_seen = float("nan")
         self._diagnostics: tuple[ControlOutput, tuple | None] | None = None
@@ -321,7 +339,7 @@ class Controller:
         if abs(dt - self.period) <= TIME_TOLERANCE:
             dt = self.period
         self._t = t
-        jumped = self._odometry_jumped(q, dt)
+        jumped = self._odometry.jumped(q, dt)
         if jumped:
             self.history.clear()
             self.tracker.forget()
@@ -496,20 +514,6 @@ class Controller:
         if self.fused is not None:
             self.fused.settings[self._margin_slot] = margin
 
-    def _odometry_jumped(self, q: np.ndarray, dt: float) -> bool:
-        """Whether the planar root moved further than the velocity limits allow in ``dt``."""
-        if self._root_q is None:
-            return False
-        x, y, c, s = q[self._root_q].tolist()
-        previous, self._previous_root = self._previous_root, (x, y, c, s)
-        if previous is None:
-            return False
-        x0, y0, c0, s0 = previous
-        limits = self._jump_limits
-        moved = math.hypot(x - x0, y - y0)
-        turned = abs(math.atan2(c0 * s - s0 * c, c0 * c + s0 * s))
-        return moved > limits[0] * dt + JUMP_SLACK[0] or turned > limits[1] * dt + JUMP_SLACK[1]
-
     def _command(
         self, t: float, q: np.ndarray, v: np.ndarray, velocity: np.ndarray, dt: float
     ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, bool]:
@@ -561,8 +565,10 @@ class Controller:
         """Run both paths once on the home posture, then forget it: the kernels are compiled."""
         model = self.model
         q, v = model.home(), np.zeros(model.n)
-        points = np.array([[0.0, 30.0], [0.0, -30.0]])
-        self.step(0.0, q, v, CameraFrame.seen(0.0, points, np.ones(2)), laser=(1.0, 0.0),
+        k = self.features.n_points  # the paper's two: one above the other
+        angles = np.pi / 2 + 2 * np.pi * np.arange(k) / k
+        points = 30.0 * np.column_stack([np.cos(angles), np.sin(angles)]).round(12)
+        self.step(0.0, q, v, CameraFrame.seen(0.0, points, np.ones(k)), laser=(1.0, 0.0),
                   target_velocity=np.zeros(3))  # fmt: skip
         self.step(self.period, q, v, CameraFrame.not_visible(self.period),
                   target_velocity=np.zeros(3))  # fmt: skip
@@ -590,11 +596,3 @@ def _usable(shown: tuple[np.ndarray, np.ndarray] | None) -> tuple[ImageMeasureme
     if not (depths > MIN_DEPTH).all():
         return None, f"depths {depths.tolist()} not above {MIN_DEPTH} m: taken as not visible"
     return ImageMeasurement(points, depths), ""
-
-
-def _planar_root_slice(model: pin.Model) -> slice | None:
-    """Where a planar root joint's ``[x, y, cos, sin]`` lie in ``q``; None without one."""
-    if model.njoints < 2 or model.joints[1].shortname() != "JointModelPlanar":
-        return None
-    start = model.joints[1].idx_q
-    return slice(start, start + 4)

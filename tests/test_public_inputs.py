@@ -189,6 +189,10 @@ CALLS = {
                          lambda r: {"robot": r, "q": r.home(), "v": np.zeros(r.n)}),
     "load_robot": (lambda r: pbvs_pin.load_robot, lambda r: {"name": "pioneer_cyton"}),
     "load_scenario": (lambda r: pbvs_pin.load_scenario, lambda r: {"name_or_path": "experiment1"}),
+    "simulate": (lambda r: pbvs_pin.simulate,
+                 lambda r: {"scenario": pbvs_pin.load_scenario("experiment1").with_values(
+                     duration=0.2), "features": pbvs_pin.ImagePointFeatures(2),
+                     "xi_d": [0.0, 60.0, 0.0, -60.0]}),
     "RunLog.load": (lambda r: pbvs_pin.RunLog.load, lambda r: {}),
     "RunLog.save": (lambda r: pbvs_pin.RunLog({"t": np.zeros(2)}).save, lambda r: {}),
     "ServoModel.from_robot": (lambda r: pbvs_pin.ServoModel.from_robot,

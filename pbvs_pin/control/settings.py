@@ -139,7 +139,7 @@ class ControllerSettings:
 
 
 def per_dof(settings: ControllerSettings, field: str, values: tuple, n: int) -> np.ndarray:
-    """A per-dof vector given as 1 or n values, or the error naming ``field``."""
+    """A vector of n entries (per dof or feature) given as 1 or n values, or the error."""
     array = np.asarray(values, dtype=float)
     if array.size == 1:
         return np.full(n, float(array[0]))
@@ -159,19 +159,21 @@ def loop_gain_margin(settings: ControllerSettings, latency: float, noise_px: flo
 
 
 def kinematic_law(
-    settings: ControllerSettings, model: MobileManipulator, latency: float
+    settings: ControllerSettings, model: MobileManipulator, latency: float, features: int = 3
 ) -> PassivityController:
-    """The kinematic controller, its gains fitted to the model's dof.
+    """The kinematic controller, its gains fitted to the model's dof and the features.
 
     Args:
         settings: The settings.
         model: The controller's model of the robot.
         latency: The frames' expected age on arrival [s], for the loop-gain margin.
+        features: The number of features r (the paper's three unless the controller was
+            given its own feature set): ``controller.k`` has 1 or r values.
     """
     spec = settings.controller
     n = model.n
     gains = ServoGains(
-        k=tuple(per_dof(settings, "controller.k", spec.k, 3)),
+        k=tuple(per_dof(settings, "controller.k", spec.k, features)),
         k1=tuple(per_dof(settings, "controller.k1", _reference_gains(spec.k1, model), n)),
         k2=tuple(per_dof(settings, "controller.k2", _reference_gains(spec.k2, model), n)),
         feature_scale=spec.feature_scale,

@@ -23,7 +23,14 @@ from numba import njit
 from pbvs_pin.exceptions import GainError, PointBehindCamera, ShapeError
 from pbvs_pin.linalg import matmul
 from pbvs_pin.model.camera import MIN_DEPTH, CameraIntrinsics, point_jacobians
-from pbvs_pin.validation import as_array, as_matrix, as_numbers, as_rows, convert_fields
+from pbvs_pin.validation import (
+    as_array,
+    as_instance,
+    as_matrix,
+    as_numbers,
+    as_rows,
+    convert_fields,
+)
 
 if TYPE_CHECKING:
     from pbvs_pin.model.robot import MobileManipulator
@@ -266,6 +273,56 @@ class FeatureSet(abc.ABC):
         return self.jacobians_from_measurement(
             robot.camera, measurement, robot.camera_jacobian(q), pose.rotation.T
         )
+
+
+def checked_feature_set(
+    features: object, xi_d: npt.ArrayLike | None
+) -> tuple[FeatureSet, np.ndarray]:
+    """A user's feature set and its desired features, checked once where they enter.
+
+    The compiled step reads only :attr:`FeatureSet.n_points` and :attr:`FeatureSet.rows` (the
+    features are coordinates of the frame's points, eq. (3)); these are checked here.
+
+    Args:
+        features: A :class:`FeatureSet`.
+        xi_d: Its desired features [px]. Shape (r,).
+
+    Returns:
+        The feature set and ``xi_d`` as a float array.
+
+    Raises:
+        WrongType: If ``features`` is not a FeatureSet, or a value is not numbers.
+        GainError: If ``n_points`` is not a positive integer, or ``rows`` is empty, not
+            integers, repeats an index or has one outside ``[0, 2 n_points)``; if ``xi_d``
+            is missing.
+        ShapeError: If ``xi_d`` does not have one entry per feature.
+        NonFiniteValue: If ``xi_d`` holds NaN or inf.
+    """
+    features = as_instance("features", features, FeatureSet)
+    name = type(features).__name__
+    points = features.n_points
+    if isinstance(points, bool) or not isinstance(points, int | np.integer) or points < 1:
+        raise GainError(f"{name}.n_points: expected a positive integer, got {points!r}")
+    rows = np.asarray(features.rows)
+    stacked = 2 * int(points)
+    if (
+        rows.ndim != 1
+        or rows.size == 0
+        or rows.dtype.kind not in "iu"
+        or len(np.unique(rows)) != rows.size
+        or rows.min() < 0
+        or rows.max() >= stacked
+    ):
+        raise GainError(
+            f"{name}.rows: expected distinct integer indices into the {stacked} stacked "
+            f"coordinates [u1, v1, ...] of {points} points, got {rows.tolist()!r}"
+        )
+    if xi_d is None:
+        raise GainError(
+            f"xi_d: a feature set of your own ({name}) needs its desired features, "
+            f"{rows.size} values [px]"
+        )
+    return features, as_array("xi_d", xi_d, (rows.size,))
 
 
 @dataclass(frozen=True)

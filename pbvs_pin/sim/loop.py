@@ -19,18 +19,21 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from pbvs_pin.compile_cache import announce_compiles
 from pbvs_pin.control.secondary import SecondaryObjective, user_objectives
 from pbvs_pin.control.tracking import TargetTracker
-from pbvs_pin.exceptions import RunInterrupted
+from pbvs_pin.exceptions import RunInterrupted, ShapeError
 from pbvs_pin.model.robot import MobileManipulator
 from pbvs_pin.perception.camera_frame import CameraFrame
+from pbvs_pin.perception.features import FeatureSet, checked_feature_set
 from pbvs_pin.sim.log import RunLog, RunRecorder
 from pbvs_pin.sim.obstacles import footprint_points
 from pbvs_pin.sim.scenario import Scenario
 from pbvs_pin.sim.sensing import Sensing
 from pbvs_pin.sim.setup import Setup, build
+from pbvs_pin.sim.targets import TARGET_POINTS
 from pbvs_pin.sim.vision import Frame
 from pbvs_pin.validation import as_instance
 
@@ -69,6 +72,8 @@ def simulate(
     observer: Callable[[Snapshot], None] | None = None,
     robot: MobileManipulator | None = None,
     objectives: Sequence[SecondaryObjective] = (),
+    features: FeatureSet | None = None,
+    xi_d: npt.ArrayLike | None = None,
 ) -> RunLog:
     """Run one scenario and return its log.
 
@@ -84,6 +89,11 @@ def simulate(
         objectives: The user's own secondary objectives
             (:class:`~pbvs_pin.control.secondary.SecondaryObjective` subclasses), added to the
             scenario's in ``Lambda`` (eq. 16); see :class:`pbvs_pin.Controller`.
+        features: Your own feature set, built on the target's two sphere centres (upper one
+            first, ``n_points = 2``), in place of the paper's ``[u1, v1, v2]``; see
+            :class:`pbvs_pin.Controller`. The log's ``xi``, ``xi_true`` and ``xi_d`` are its
+            features, and the rules of :mod:`pbvs_pin.study.claims` judge them.
+        xi_d: Its desired features [px], shape (r,); required with ``features``.
 
     Returns:
         The run's log (arrays at the log rate) with its setup's key facts.
@@ -91,15 +101,22 @@ def simulate(
     Raises:
         WrongType: If ``scenario`` is not a Scenario (e.g. a name: use ``load_scenario``),
             ``robot`` not a MobileManipulator, or ``objectives`` not a list of
-            SecondaryObjective.
+            SecondaryObjective, or ``features`` not a FeatureSet.
+        GainError: If ``features`` has no valid rows, or comes without ``xi_d``.
+        ShapeError: If ``features`` is not built on two points, or ``xi_d`` has not one
+            entry per feature.
         RunInterrupted: On Ctrl-C; it carries the run so far, its ``meta["interrupted"]``
             true (None when nothing was recorded yet).
     """
     scenario = as_instance("scenario", scenario, Scenario)
     robot = None if robot is None else as_instance("robot", robot, MobileManipulator)
     objectives = user_objectives(objectives)
+    if features is not None:
+        features, xi_d = checked_feature_set(features, xi_d)
+        if features.n_points != TARGET_POINTS:
+            raise ShapeError("features.n_points", (TARGET_POINTS,), (features.n_points,))
     with announce_compiles(progress):
-        return _simulate(scenario, progress, observer, robot, objectives)
+        return _simulate(scenario, progress, observer, robot, objectives, features, xi_d)
 
 
 def _simulate(
@@ -108,9 +125,11 @@ def _simulate(
     observer: Callable[[Snapshot], None] | None,
     robot: MobileManipulator | None,
     objectives: tuple[SecondaryObjective, ...],
+    features: FeatureSet | None,
+    xi_d: np.ndarray | None,
 ) -> RunLog:
     """:func:`simulate`'s run (the same arguments)."""
-    setup = build(scenario, robot, objectives)
+    setup = build(scenario, robot, objectives, features, xi_d)
     plant_dt = scenario.simulation.plant_dt
     substeps = max(1, round(1.0 / (scenario.controller.rate * plant_dt)))
     control_dt = substeps * plant_dt
@@ -181,8 +200,8 @@ def _handed_over(setup: Setup, frame: Frame | None) -> CameraFrame | None:
 def _snapshot(setup: Setup, tracker: TargetTracker, t: float) -> Snapshot:
     """The instant's true state and what the camera saw."""
     seen = tracker.measurement is not None and not tracker.lost
-    points = tracker.measurement.points if seen else np.full((2, 2), np.nan)
-    xi = setup.features.features(tracker.measurement) if seen else np.full(3, np.nan)
+    points = tracker.measurement.points if seen else np.full((TARGET_POINTS, 2), np.nan)
+    xi = setup.features.features(tracker.measurement) if seen else np.full_like(setup.xi_d, np.nan)
     renderer = setup.sensor.renderer
     image = renderer.latest if renderer is not None else None
     return Snapshot(t, setup.plant.q.copy(), setup.target.centres(t), xi, setup.xi_d, points, image)

@@ -24,7 +24,7 @@ from pbvs_pin.controller import Controller
 from pbvs_pin.model.robot import MobileManipulator
 from pbvs_pin.model.servo import ServoModel
 from pbvs_pin.perception.estimation import VelocityEstimator
-from pbvs_pin.perception.features import TwoSphereFeatures
+from pbvs_pin.perception.features import FeatureSet, TwoSphereFeatures
 from pbvs_pin.plant.pinocchio_plant import Plant
 from pbvs_pin.sim.obstacles import Laser, Obstacle
 from pbvs_pin.sim.scenario import Scenario
@@ -148,6 +148,8 @@ def build(
     scenario: Scenario,
     robot: MobileManipulator | None = None,
     objectives: Sequence[SecondaryObjective] = (),
+    features: FeatureSet | None = None,
+    xi_d: np.ndarray | None = None,
 ) -> Setup:
     """Build the true robot, the controller's model and every block of the loop.
 
@@ -160,6 +162,10 @@ def build(
             through a shallow copy that carries them; the robot itself is not modified.
         objectives: The user's own secondary objectives, added to the scenario's in the
             controller (:class:`~pbvs_pin.controller.Controller`).
+        features: The controller's feature set, on the two sphere centres, and ``xi_d`` its
+            desired features [px] (shape (r,)), checked by :func:`pbvs_pin.simulate`; None:
+            the paper's ``[u1, v1, v2]`` and the scenario's ``target.xi_d``.
+        xi_d: See ``features``.
 
     Raises:
         ScenarioError: If a value is invalid for this robot, or the target is not visible
@@ -180,13 +186,13 @@ def build(
         import pbvs_pin.sim.render  # noqa: F401  (sets MUJOCO_GL before a MuJoCo plant loads MuJoCo)
     plant = _plant(scenario, robot, q0)
     target_spec = scenario.target
-    features = TwoSphereFeatures(target_spec.diameter)
+    placing = TwoSphereFeatures(target_spec.diameter)  # target.xi0 is the paper's features
     xi0 = np.asarray(target_spec.xi0, dtype=float)
-    top = solve_target_start(robot, q0, features, target_spec.separation, xi0)
+    top = solve_target_start(robot, q0, placing, target_spec.separation, xi0)
     target = TwoSphereTarget(
         top, target_spec.diameter, target_spec.separation, _motion(scenario.motion)
     )
-    _check_start_visible(scenario, robot, q0, target, features, xi0)
+    _check_start_visible(scenario, robot, q0, target, placing, xi0)
     rng = np.random.default_rng(scenario.simulation.seed)
     spec = scenario.camera
     faults = CameraFaults(
@@ -203,8 +209,9 @@ def build(
         renderer,
     )  # fmt: skip
     control = Controller(
-        model, ControllerSettings.from_scenario(scenario), announce=False, objectives=objectives
-    )
+        model, ControllerSettings.from_scenario(scenario), announce=False, objectives=objectives,
+        features=features, xi_d=xi_d,
+    )  # fmt: skip
     laser_spec = scenario.laser
     laser = Laser(
         laser_spec.field_of_view, int(laser_spec.beams), laser_spec.max_range,

@@ -16,6 +16,8 @@ import numpy.typing as npt
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.validation import as_array
 
+TARGET_POINTS = 2
+"""The simulated target's image points: the two sphere centres, the upper one first."""
 
 class TargetMotion(abc.ABC):
     """Displacement of the target from its start, as a function of time."""
