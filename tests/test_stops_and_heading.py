@@ -103,6 +103,10 @@ def test_heading_is_the_cameras_yaw_from_the_drive_direction_in_closed_form(
     psi = np.angle(np.exp(1j * (camera_yaw - base_yaw)))  # wrapped to (-pi, pi]
     expected = 0.7 * np.cos(pitch) * psi
     assert heading_term(_camera(camera_yaw, pitch), q, 0.7) == pytest.approx(expected, abs=1e-12)
+    # measured from the heading at theta_d (offset), wrapped: at the offset the term is zero
+    offset = psi + 0.3
+    shifted = 0.7 * np.cos(pitch) * np.angle(np.exp(-0.3j))
+    assert heading_term(_camera(camera_yaw, pitch), q, 0.7, offset) == pytest.approx(shifted)
 
 
 def test_the_heading_share_yields_to_an_obstacle_ahead_and_not_to_one_abeam():
@@ -118,15 +122,52 @@ def test_the_heading_share_yields_to_an_obstacle_ahead_and_not_to_one_abeam():
     assert heading_share(0.5, np.pi / 2 - 1e-6, d0) == pytest.approx(1.0, abs=1e-5)
 
 
-def test_the_heading_objective_turns_a_two_wheel_base_only():
+def test_the_heading_objective_turns_the_platforms_yaw_rate():
     state = SecondaryInput(np.zeros(3), np.inf, 0.0, 0.01, _camera(0.5, 0.0),
                            np.array([0.0, 0.0, 1.0, 0.0, 0.0]))  # fmt: skip
     assert BaseHeading(2.0).contribution(state, 2, 5).tolist() == [0.0, 1.0, 0.0, 0.0, 0.0]
     ahead = SecondaryInput(np.zeros(3), 0.5, 0.0, 0.01, state.camera_rotation, state.q)
     assert not np.any(BaseHeading(2.0, 1.0).contribution(ahead, 2, 5))  # avoidance's turn
-    assert not np.any(BaseHeading(2.0).contribution(state, 3, 6))  # holonomic: not needed
+    # holonomic [vx, vy, omega]: the yaw rate is the third
+    assert BaseHeading(2.0).contribution(state, 3, 6).tolist() == [0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
     no_pose = SecondaryInput(np.zeros(3), np.inf, 0.0, 0.01)
     assert not np.any(BaseHeading(2.0).contribution(no_pose, 2, 5))
+
+
+def test_the_heading_objective_is_on_for_every_holonomic_base_and_stretch_alone_on_two_wheels(
+    load,
+):
+    from conftest import REPO_ROOT
+
+    from pbvs_pin.control.settings import ControllerSettings, secondary_objectives
+    from pbvs_pin.study.experiments import robot_file
+
+    settings = ControllerSettings()
+    kinds = {}
+    for name in ("pioneer_cyton", "tiago_pro", "stretch_re1"):
+        if name == "pioneer_cyton":
+            robot = load(name)
+        else:
+            spec = robot_file(str(REPO_ROOT / "robots" / f"{name}.toml"))
+            robot = spec.robot.build(spec.camera.intrinsics())
+        objectives = secondary_objectives(settings, robot, robot.home_arm)
+        kinds[name] = [o.gain for o in objectives if isinstance(o, BaseHeading)]
+    assert kinds["pioneer_cyton"] == [] and kinds["tiago_pro"] == [1.0]  # k_psi, in full
+    assert kinds["stretch_re1"] == [pytest.approx(1.0, abs=1e-5)]  # times heading_factor
+
+
+def test_theta_d_leaves_the_joint_limit_zones_by_hand():
+    from pbvs_pin.control.secondary import rest_outside_limit_zones
+
+    lower = np.array([-1.0, 0.0, 0.0, -np.inf, -1.0])
+    upper = np.array([1.0, 0.31, 1.0, np.inf, 1.0])
+    continuous = np.array([False, False, False, False, True])
+    target = np.array([0.95, 0.279, 0.5, 5.0, 0.99])
+    expected = [0.8, 0.155, 0.5, 5.0, 0.99]  # clipped to 1 - 0.2; mid of 0.31; kept; kept; kept
+    assert rest_outside_limit_zones(target, lower, upper, continuous) == pytest.approx(expected)
+    assert rest_outside_limit_zones(np.array([-0.9]), lower[:1], upper[:1], continuous[:1]) == (
+        pytest.approx([-0.8])
+    )
 
 
 def test_stretch_re1_holds_experiment2_while_its_arm_sits_at_its_stops():

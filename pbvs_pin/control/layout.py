@@ -136,6 +136,8 @@ class Settings(NamedTuple):
     """Largest gain per camera sample ``k T lambda_max(J J^T)`` [1]."""
     heading_gain: float = 0.0
     """``k_psi`` of the base-heading objective [1/s] (:func:`~.secondary.heading_term`); 0: off."""
+    heading_offset: float = 0.0
+    """Its ``psi_d``, the camera's heading at ``theta_d`` [rad]."""
 
 
 class State(NamedTuple):
@@ -299,6 +301,7 @@ def settings(block: np.ndarray) -> Settings:
         camera_period=block[18],
         loop_gain_margin=block[19],
         heading_gain=block[20],
+        heading_offset=block[21],
     )
 
 

@@ -40,6 +40,37 @@ def posture_term(
     return gain * arm_difference(target, arm, continuous)
 
 
+LIMIT_MARGIN = 0.2
+"""Width of each joint-limit zone of :class:`JointLimitAvoidance` [rad or m]."""
+
+
+def rest_outside_limit_zones(
+    target: np.ndarray, lower: np.ndarray, upper: np.ndarray, continuous: np.ndarray
+) -> np.ndarray:
+    """``theta_d`` moved to where the joint-limit objective rests. Shape (n_arm,).
+
+    :func:`joint_limit_term` pulls a joint out of the zone within :data:`LIMIT_MARGIN` of
+    each limit, and eq. (19) pulls it to ``theta_d``: a ``theta_d`` inside a zone is where
+    neither rests, and the joint settles between them, off ``theta_d`` for good. So each
+    target is clipped to ``[lower + margin, upper - margin]``; a joint whose zones overlap
+    (range under ``2 margin``: PR2's, TIAGo's and Fetch's torso lifts, Stretch's telescoping
+    segments) is always in one, and its target is its mid-travel, where the two pulls cancel.
+    Continuous joints and infinite limits keep theirs.
+
+    Args:
+        target: ``theta_d`` [rad or m]. Shape (n_arm,).
+        lower: Lower limits. Shape (n_arm,).
+        upper: Upper limits. Shape (n_arm,).
+        continuous: Whether each joint is continuous. Shape (n_arm,).
+    """
+    out = np.array(target, dtype=float)
+    limited = ~np.asarray(continuous) & np.isfinite(lower) & np.isfinite(upper)
+    low, high = lower[limited] + LIMIT_MARGIN, upper[limited] - LIMIT_MARGIN
+    middle = 0.5 * (lower[limited] + upper[limited])
+    out[limited] = np.where(low > high, middle, np.clip(out[limited], low, high))
+    return out
+
+
 @njit(cache=True, inline="always")
 def joint_limit_term(
     arm: np.ndarray, lower: np.ndarray, upper: np.ndarray, margin: float, gain: float
@@ -78,35 +109,59 @@ def heading_share(distance: float, angle: float, d0: float) -> float:
 
 
 @njit(cache=True, inline="always")
-def heading_term(rotation: np.ndarray, q: np.ndarray, gain: float) -> float:
-    r"""The base-heading objective: turn a differential platform to where the camera looks.
+def heading_term(rotation: np.ndarray, q: np.ndarray, gain: float, offset: float = 0.0) -> float:
+    r"""The base-heading objective: turn the platform to where the camera looks.
 
-    .. math:: \Lambda_\omega \mathrel{+}= s\, k_\psi\, \|c_h\|\, \psi,\qquad
+    .. math:: \Lambda_\omega \mathrel{+}= s\, k_\psi\, \|c_h\|\, (\psi - \psi_d),\qquad
               \psi = \operatorname{atan2}(b \times c_h,\ b \cdot c_h)
 
     (``s`` from :func:`heading_share`, applied by the caller) with ``c_h`` the optical axis
     ``wRc e_z`` on the floor (its x and y in the world) and ``b``
     the platform's forward axis ``[cos, sin]`` of the planar root joint (``q[2:4]``). ``psi``
-    is the camera's heading relative to the drive direction [rad], 0 at the home posture
-    (:mod:`pbvs_pin.bringup.home`); ``|c_h|`` fades the term out for a camera looking up or down.
+    is the camera's heading relative to the drive direction [rad], and ``psi_d`` (``offset``)
+    its value at ``theta_d`` (eq. 19), so that this objective rests where the posture does (0
+    for a computed home, :mod:`pbvs_pin.bringup.home`, whose camera looks forward; a shipped
+    recipe's may look a little aside); ``|c_h|`` fades the term out for a camera looking up
+    or down.
     In the null space of ``J`` it turns the platform and counter-rotates the arm, so that the
     camera's depth, the largest motion the task asks for, lies along the way the platform
     drives. A platform that cannot move sideways needs that: a camera that looks across it
     can close its depth only with the arm, and a telescoping arm at its stops cannot.
     Without ``s`` the reference robot drove into Experiment 2's obstacle (clearance -0.14 m).
+    A holonomic platform (``Lambda_omega`` is its third velocity) shares the camera's heading
+    between its yaw and the arm, and nothing else brings the yaw back: after Experiment 2's
+    obstacle the PR2's platform stood 2.35 rad turned and its shoulder pan 0.96 rad off
+    ``theta_d``, returning with a time constant of about 10 s (posture 0.113 rad over the
+    last 5 s, rule 0.1). The term turns such a platform back, and eq. (19) returns the arm.
 
     Args:
         rotation: ``wRc``. Shape (3, 3).
         q: Configuration, a planar root joint first. Shape (nq,).
         gain: ``k_psi`` [1/s].
+        offset: ``psi_d`` [rad].
 
     Returns:
-        ``k_psi |c_h| psi`` [rad/s].
+        ``k_psi |c_h| (psi - psi_d)`` [rad/s], the difference wrapped to ``(-pi, pi]``.
     """
     cx, cy = rotation[0, 2], rotation[1, 2]
     bx, by = q[2], q[3]
-    psi = np.arctan2(bx * cy - by * cx, bx * cx + by * cy)
+    psi = np.arctan2(bx * cy - by * cx, bx * cx + by * cy) - offset
+    psi = np.arctan2(np.sin(psi), np.cos(psi))
     return gain * np.sqrt(cx * cx + cy * cy) * psi
+
+
+def heading_at(model: MobileManipulator, arm: np.ndarray) -> float:
+    """``psi_d``: the camera's heading from the platform's forward axis at arm posture ``arm``.
+
+    Args:
+        model: The robot.
+        arm: Arm positions [rad or m]. Shape (n_arm,).
+
+    Returns:
+        The heading [rad] (:func:`heading_term`'s ``psi``, platform at the origin).
+    """
+    rotation = model.camera_pose(model.with_arm_positions(model.neutral(), arm)).rotation
+    return float(np.arctan2(rotation[1, 2], rotation[0, 2]))
 
 
 DEPTH_REACH_FULL = 0.1
@@ -362,7 +417,7 @@ class JointLimitAvoidance(SecondaryObjective):
 
     lower: np.ndarray
     upper: np.ndarray
-    margin: float = 0.2
+    margin: float = LIMIT_MARGIN
     gain: float = 2.0
 
     def __post_init__(self) -> None:
@@ -379,25 +434,26 @@ class JointLimitAvoidance(SecondaryObjective):
 
 
 class BaseHeading(SecondaryObjective):
-    """Turn a two-wheel platform to where the camera looks (:func:`heading_term`).
+    """Turn the platform to where the camera looks (:func:`heading_term`).
 
     Args:
         gain: ``k_psi`` [1/s].
         d0: Distance at which obstacle avoidance starts [m]; 0: no avoidance.
+        offset: ``psi_d``, the heading at ``theta_d`` [rad] (:func:`heading_at`).
     """
 
-    def __init__(self, gain: float = 1.0, d0: float = 0.0) -> None:
+    def __init__(self, gain: float = 1.0, d0: float = 0.0, offset: float = 0.0) -> None:
         check_positive("BaseHeading", gain=gain)
-        self.gain, self.d0 = gain, d0
+        self.gain, self.d0, self.offset = gain, d0, offset
 
     def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
-        """``[0, s k_psi |c_h| psi, 0, ...]`` for a differential base (:func:`heading_share`)."""
+        """``s k_psi |c_h| psi`` in the platform's yaw rate (:func:`heading_share`). Shape (n,)."""
         out = np.zeros(n)
-        if n_base == 2 and state.camera_rotation is not None and state.q is not None:
+        if n_base >= 2 and state.camera_rotation is not None and state.q is not None:
             rotation = np.asarray(state.camera_rotation, dtype=float)
             q = np.asarray(state.q, dtype=float)
             share = heading_share(state.obstacle_distance, state.obstacle_angle, self.d0)
-            out[1] = share * heading_term(rotation, q, self.gain)
+            out[n_base - 1] = share * heading_term(rotation, q, self.gain, self.offset)
         return out
 
 

@@ -25,7 +25,9 @@ from pbvs_pin.control.secondary import (
     ObstacleAvoidance,
     SecondaryObjective,
     arm_depth_reach,
+    heading_at,
     heading_factor,
+    rest_outside_limit_zones,
 )
 from pbvs_pin.control.support import KeepSupported
 from pbvs_pin.control.tables import (
@@ -234,10 +236,16 @@ def posture_target(settings: ControllerSettings, model: MobileManipulator) -> np
     of the ``J^T`` feedback (the depth): xArm7 Experiment 4 ends 9 px off, TIAGo 2 px. The
     default ``"home"`` is the most manipulable posture among those in which the camera looks
     forward, upright (:func:`pbvs_pin.bringup.home.compute_home`), which the task can reach.
+    With ``secondary.joint_limits``, the home is moved out of the joint-limit zones, to where
+    that objective rests (:func:`~pbvs_pin.control.secondary.rest_outside_limit_zones`); the
+    paper's maximum is taken as it is.
     """
-    if settings.secondary.posture_target == "home":
+    if settings.secondary.posture_target != "home":
+        return max_manipulability_posture(model)
+    if not settings.secondary.joint_limits:
         return model.home_arm.copy()
-    return max_manipulability_posture(model)
+    lower, upper = model.arm_position_limits()
+    return rest_outside_limit_zones(model.home_arm, lower, upper, model.arm_continuous)
 
 
 def secondary_objectives(
@@ -263,13 +271,16 @@ def secondary_objectives(
     if spec.joint_limits:
         lower, upper = model.arm_position_limits()
         objectives.append(JointLimitAvoidance(lower, upper))
+    gain = 0.0
+    if spec.k_heading > 0.0 and model.n_base == 3:  # a holonomic base: its yaw returns the arm
+        gain = spec.k_heading
     if spec.k_heading > 0.0 and model.n_base == 2:
         jacobian = model.camera_jacobian(model.home())
         reach = arm_depth_reach(jacobian, model.velocity_limits, model.n_base)
         gain = spec.k_heading * heading_factor(reach)
-        if gain > 0.0:  # an arm that moves the camera along its axis: off, bit for bit
-            d0 = spec.d0 if spec.obstacle_avoidance else 0.0
-            objectives.append(BaseHeading(gain, d0))
+    if gain > 0.0:  # two wheels and an arm that moves the camera along its axis: off
+        d0 = spec.d0 if spec.obstacle_avoidance else 0.0
+        objectives.append(BaseHeading(gain, d0, heading_at(model, target)))
     if spec.support and model.support is not None:
         objectives.append(KeepSupported(model, model.support, spec.k_support, target=target))
     return objectives

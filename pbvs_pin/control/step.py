@@ -147,10 +147,11 @@ def fused_control_step(
         )
         out.impedance_velocity[:] = impedance
         add_obstacle_terms(secondary, impedance, n_base)
-    if setting.heading_gain > 0.0 and n_base == 2:
+    if setting.heading_gain > 0.0 and n_base >= 2:
         d0 = setting.d0 if setting.obstacle else 0.0
         share = heading_share(laser[0], laser[1], d0)
-        secondary[1] += share * heading_term(rotation, q, setting.heading_gain)
+        heading = heading_term(rotation, q, setting.heading_gain, setting.heading_offset)
+        secondary[n_base - 1] += share * heading
     for j in range(n):  # the user's objectives, evaluated before the call
         secondary[j] += user_secondary[j]
     if not np.isnan(age):  # the prediction: the frame's points moved by phat_dot, eq. (2) at q
@@ -278,7 +279,7 @@ class FusedControlStep:
                     joint_limits=True, limit_margin=objective.margin, limit_gain=objective.gain
                 )
             elif isinstance(objective, BaseHeading):
-                switched_on.update(heading_gain=objective.gain)
+                switched_on.update(heading_gain=objective.gain, heading_offset=objective.offset)
             elif isinstance(objective, ObstacleAvoidance):
                 switched_on.update(
                     obstacle=True, k_u=objective.k_u, k_w=objective.k_w, d0=objective.d0,

@@ -282,8 +282,10 @@ class SecondarySection(Section):
     posture_target: str = key(
         "home",
         "theta_d of eq. (19): 'home', the robot's home posture (the most manipulable posture "
-        "with the camera looking forward, upright: pbvs_pin.bringup.home), or "
-        "'max_manipulability', the paper's unconstrained maximum of the arm's manipulability.",
+        "with the camera looking forward, upright: pbvs_pin.bringup.home), "
+        "with joint_limits moved out of the joint-limit zones "
+        "(pbvs_pin.control.secondary.rest_outside_limit_zones), or 'max_manipulability', the "
+        "paper's unconstrained maximum of the arm's manipulability.",
         choices=("home", "max_manipulability"),
     )
     joint_limits: bool = key(True, "Keep the arm joints away from their limits.")
@@ -307,8 +309,8 @@ class SecondarySection(Section):
     )
     k_heading: float = key(
         1.0,
-        "k_psi [1/s]: turn a two-wheel platform to where the camera looks "
-        "(secondary.heading_term), times heading_factor: 0 for an arm that moves the camera "
-        "along its axis (most); 0: off.",
+        "k_psi [1/s]: turn the platform to where the camera looks (secondary.heading_term): "
+        "a holonomic one fully; a two-wheel one times heading_factor, 0 for an arm that moves "
+        "the camera along its axis (most); 0: off.",
         sign=NON_NEGATIVE,
     )
