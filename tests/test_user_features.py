@@ -51,7 +51,9 @@ def _square(robot: pbvs_pin.MobileManipulator) -> list[np.ndarray]:
     """The square's corners in the world [m], facing the home camera."""
     pose = robot.camera_pose(robot.home())
     corners = [(-1, -1), (1, -1), (1, 1), (-1, 1)]
-    return [pose.act(np.array([a * SQUARE_HALF, b * SQUARE_HALF, SQUARE_DEPTH])) for a, b in corners]
+    return [
+        pose.act(np.array([a * SQUARE_HALF, b * SQUARE_HALF, SQUARE_DEPTH])) for a, b in corners
+    ]
 
 
 def _image(robot: pbvs_pin.MobileManipulator, q: np.ndarray, square: list) -> np.ndarray:
@@ -114,10 +116,6 @@ def test_a_feature_set_of_your_own_holds_experiment_1_in_simulate(sphere_run):
     assert not np.any(log["target_lost"])
 
 
-def _robot(load) -> pbvs_pin.MobileManipulator:
-    return load("pioneer_cyton")
-
-
 class Repeats(pbvs_pin.FeatureSet):
     n_points = 2
     rows = np.array([0, 0, 1])
@@ -137,9 +135,9 @@ class OutOfRange(pbvs_pin.FeatureSet):
      ({"features": Repeats(), "xi_d": np.zeros(3)}, pbvs_pin.GainError, r"Repeats\.rows"),
      ({"features": OutOfRange(), "xi_d": np.zeros(3)}, pbvs_pin.GainError, r"OutOfRange\.rows")],
 )  # fmt: skip
-def test_a_wrong_feature_set_is_refused_naming_it(load, kwargs, error, named):
+def test_a_wrong_feature_set_is_refused_naming_it(cyton, kwargs, error, named):
     with pytest.raises(error, match=named):
-        pbvs_pin.Controller(_robot(load), announce=False, **kwargs)
+        pbvs_pin.Controller(cyton, announce=False, **kwargs)
 
 
 def test_simulate_refuses_features_on_other_points_than_its_two_spheres():
@@ -148,18 +146,20 @@ def test_simulate_refuses_features_on_other_points_than_its_two_spheres():
         pbvs_pin.simulate(scenario, features=FourCorners(), xi_d=np.zeros(8))
 
 
-def test_gains_per_feature_must_fit_your_features(load):
+def test_gains_per_feature_must_fit_your_features(cyton):
     settings = pbvs_pin.ControllerSettings.from_scenario(
         pbvs_pin.load_scenario("experiment1").with_values(**{"controller.k": [0.1, 0.2, 0.3]})
     )
     with pytest.raises(pbvs_pin.ScenarioError, match=r"controller\.k.*expected 1 or 8 values"):
-        pbvs_pin.Controller(_robot(load), settings, announce=False, features=FourCorners(),
+        pbvs_pin.Controller(cyton, settings, announce=False, features=FourCorners(),
                             xi_d=np.zeros(8))  # fmt: skip
 
 
-def test_a_frame_must_carry_your_points(load):
-    robot = _robot(load)
-    controller = pbvs_pin.Controller(robot, announce=False, features=FourCorners(), xi_d=np.zeros(8))
+def test_a_frame_must_carry_your_points(cyton):
+    robot = cyton
+    controller = pbvs_pin.Controller(
+        robot, announce=False, features=FourCorners(), xi_d=np.zeros(8)
+    )
     frame = pbvs_pin.CameraFrame.seen(0.0, np.zeros((2, 2)), np.ones(2))
     with pytest.raises(pbvs_pin.ShapeError, match=r"frame\.points: expected shape \(4, 2\)"):
         controller.step(0.0, robot.home(), np.zeros(robot.n), frame)

@@ -19,6 +19,7 @@ from pbvs_pin.validation import as_array
 TARGET_POINTS = 2
 """The simulated target's image points: the two sphere centres, the upper one first."""
 
+
 class TargetMotion(abc.ABC):
     """Displacement of the target from its start, as a function of time."""
 
