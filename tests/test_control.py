@@ -542,6 +542,29 @@ def test_obstacle_lateral_force_pushes_a_holonomic_base_away(alpha, lateral):
     np.testing.assert_allclose(unicycle, [-u_obs, omega_obs, 0, 0, 0], atol=1e-15)
 
 
+@pytest.mark.parametrize(
+    "alpha, side",  # TURN_RAMP = 0.1 rad: the ramp's share of the paper's full turn
+    [(0.0, 0.0), (0.05, 0.5), (-0.02, -0.2), (0.1, 1.0), (0.4, 1.0), (-1.0, -1.0)],
+)  # fmt: skip
+def test_holonomic_avoidance_turn_ramps_through_dead_ahead(alpha, side):
+    """A holonomic base's F_w: the paper's sign(alpha) replaced by a ramp over +-0.1 rad, so
+    an obstacle sweeping through its forward axis does not reverse the turn at full strength;
+    a unicycle keeps the paper's sign (eq. 18)."""
+    avoidance = ObstacleAvoidance(k_u=0.5, k_w=0.9, d0=1.0)
+    paper = 0.9 * 0.5 * (np.pi / 2 - abs(alpha))  # k_w (d0 - d)(pi/2 - |alpha|), d = 0.5
+    assert avoidance.force(0.5, alpha, holonomic=True)[1] == pytest.approx(side * paper)
+    assert avoidance.force(0.5, alpha)[1] == pytest.approx(np.sign(alpha) * paper)
+    # Braking and the lateral push are the same on both.
+    np.testing.assert_array_equal(
+        avoidance.force(0.5, alpha, holonomic=True)[[0, 2]], avoidance.force(0.5, alpha)[[0, 2]]
+    )
+    # The contribution a holonomic base gets takes the ramp: [-u_obs, vy_obs, omega_obs, ...].
+    state = SecondaryInput(np.zeros(3), 0.5, alpha, 1.0)
+    decay = 1.0 - np.exp(-1.0 * 1.0 / 0.5)
+    lam = ObstacleAvoidance(k_u=0.5, k_w=0.9, d0=1.0).contribution(state, 3, 6)
+    assert lam[2] == pytest.approx(decay * side * paper)
+
+
 def test_obstacle_impedance_is_first_order_mass_damper():
     """Constant force F through Z(s) = m s + b: velocity = F/b (1 - exp(-b t / m))."""
     mass, damping, dt = 0.5, 2.0, 0.01

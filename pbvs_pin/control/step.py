@@ -141,7 +141,7 @@ def fused_control_step(
         )
     if setting.obstacle:
         distance, angle = laser[0], laser[1]
-        force = obstacle_force(distance, angle, setting.k_u, setting.k_w, setting.d0)
+        force = obstacle_force(distance, angle, setting.k_u, setting.k_w, setting.d0, n_base == 3)
         impedance = impedance_step(
             out.impedance_velocity, force, setting.impedance_mass, setting.impedance_damping, dt
         )
