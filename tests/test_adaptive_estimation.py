@@ -182,6 +182,34 @@ def test_normalised_innovation_is_unit_and_no_manoeuvre_is_seen_on_a_constant_ve
     assert filt.manoeuvres <= 1  # at most the track's start (the estimate begins at rest)
 
 
+def _boost_after_jump(jump):
+    """The boost's share b after one measurement ``jump`` steady-state spreads off a
+    constant-velocity track along x, read on the y axis (whose noise estimate the jump leaves
+    alone): its gain moves from the steady state's toward the stated 0.5 by b."""
+    filt = AdaptiveAlphaBetaFilter()
+    rng = np.random.default_rng(31)
+    for k in range(300):
+        t = k * PERIOD
+        filt.update(START + VELOCITY * t + NOISE * rng.standard_normal(3), t)
+    steady = filt.gains[0][1]
+    spread = innovation_spread(*filt.gains, filt.noise)[0]
+    t = 300 * PERIOD
+    filt.update(START + VELOCITY * t + np.array([jump * spread, 0.0, 0.0]), t)
+    return (filt.gains[0][1] - steady) / (0.5 - steady), filt.manoeuvres
+
+
+def test_the_boost_grows_with_the_evidence():
+    """The averaged innovation moves by a fifth of one frame's (memory 0.8); the jump also
+    raises the x axis's noise estimate, which shrinks its own innovation. A jump of 5 spreads
+    stays under the threshold (1.5): no boost. Larger ones lift every axis's gains part of the
+    way to the stated ones, more for the larger."""
+    none, quiet = _boost_after_jump(5.0)
+    some, once = _boost_after_jump(12.0)
+    more, _ = _boost_after_jump(40.0)
+    assert abs(none) < 0.02 and quiet == 0
+    assert 0.05 < some < more < 1.0 and once == 1
+
+
 def _stop_errors(threshold, monkeypatch, noise):
     """Velocity errors [m/s] of a target that stops at 10 s, from 10.5 to 12 s; detections."""
     monkeypatch.setattr(estimation, "MANOEUVRE_THRESHOLD", threshold)
