@@ -2,9 +2,12 @@
 
 import numpy as np
 import pytest
+from conftest import REPO_ROOT
 from simhelpers import controller_with_first_frame
 
+from pbvs_pin.control.secondary import ObstacleAvoidance
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.study.experiments import with_robot
 
 NO_LATENCY = {"camera.latency": 0.0, "estimator.predict": False}
 """Frames servoed on as they are (the shipped experiments predict each one forward to the
@@ -12,7 +15,9 @@ configuration now), so that the measurement is the frame's."""
 
 
 def test_loop_jacobians_match_the_feature_set_at_the_current_configuration():
-    setup, control = controller_with_first_frame(load_scenario("experiment1").with_values(**NO_LATENCY))
+    setup, control = controller_with_first_frame(
+        load_scenario("experiment1").with_values(**NO_LATENCY)
+    )
     # A configuration other than the one the frame was captured at, so a stale camera
     # placement in pin.Data would give a different J_o.
     q = setup.model.integrate(setup.plant.q, np.array([0.2, 0.5, 0.4, -0.3, 0.2]), 1.0)
@@ -28,19 +33,13 @@ def test_loop_jacobians_match_the_feature_set_at_the_current_configuration():
     np.testing.assert_allclose(object_jacobian, expected_jo, rtol=1e-12, atol=1e-9)
 
 
-@pytest.mark.parametrize("predict", [False, True])
-def test_fused_step_equals_the_modular_blocks(predict):
-    """The compiled step gives what the modular classes give, prediction on or off."""
-    # posture, joint limits and obstacle avoidance on
-    scenario = load_scenario("experiment2").with_values(
-        **{**NO_LATENCY, "estimator.predict": predict}
-    )
+def _paths_agree(scenario, laser, predict):
+    """Step the modular classes and the compiled step side by side; both give the same."""
     modular_setup, modular = controller_with_first_frame(scenario, modular=True)
     _, fused = controller_with_first_frame(scenario)
     assert fused.fused is not None and modular.fused is None
     rng = np.random.default_rng(3)
     q = modular_setup.plant.q
-    laser = (0.6, 0.3)  # an obstacle inside d0, to the right
     for step in range(1, 4):  # several steps: the command derivative and impedance have memory
         q = modular.model.integrate(q, rng.uniform(-0.05, 0.05, modular.model.n), 1.0)
         v = rng.uniform(-0.2, 0.2, modular.model.n)
@@ -50,7 +49,8 @@ def test_fused_step_equals_the_modular_blocks(predict):
             for c in (modular, fused)
         ]
         (output, (jacobian, object_jacobian)), (fused_output, (jacobian_f, object_jacobian_f)) = (
-            modular.diagnostics(), fused.diagnostics()
+            modular.diagnostics(),
+            fused.diagnostics(),
         )
         np.testing.assert_allclose(commands[1].u, commands[0].u, rtol=1e-10, atol=1e-12)
         np.testing.assert_allclose(commands[1].v_ref, commands[0].v_ref, rtol=1e-10, atol=1e-12)
@@ -62,3 +62,28 @@ def test_fused_step_equals_the_modular_blocks(predict):
         np.testing.assert_allclose(fused_output.null_space, output.null_space, atol=1e-12)
         assert commands[0].predicting == predict
     assert np.linalg.norm(output.null_space) > 1e-3  # the objectives really acted
+    return modular
+
+
+@pytest.mark.parametrize("predict", [False, True])
+def test_fused_step_equals_the_modular_blocks(predict):
+    """The compiled step gives what the modular classes give, prediction on or off."""
+    # posture, joint limits and obstacle avoidance on; an obstacle inside d0, to the right
+    scenario = load_scenario("experiment2").with_values(
+        **{**NO_LATENCY, "estimator.predict": predict}
+    )
+    _paths_agree(scenario, (0.6, 0.3), predict)
+
+
+def test_fused_step_equals_the_modular_blocks_on_a_holonomic_base_near_dead_ahead():
+    """TIAGo Pro's holonomic base, an obstacle 0.05 rad right of dead ahead: inside the turn's
+    ramp (``TURN_RAMP``), where a flag lost on either path would show."""
+    scenario = with_robot(
+        load_scenario("experiment2"), REPO_ROOT / "robots" / "tiago_pro.toml"
+    ).with_values(**NO_LATENCY)
+    modular = _paths_agree(scenario, (0.6, 0.05), False)
+    assert modular.model.n_base == 3
+    # The turn the modular avoidance took is the ramp's half, not the paper's whole.
+    avoidance = next(o for o in modular.objectives if isinstance(o, ObstacleAvoidance))
+    ramp, paper = avoidance.force(0.6, 0.05, holonomic=True), avoidance.force(0.6, 0.05)
+    assert ramp[1] == pytest.approx(0.5 * paper[1])

@@ -347,7 +347,9 @@ class ObstacleAvoidance(SecondaryObjective):
               \omega_{obs} = Z^{-1}\!\left(k_{\omega obs} (d_0 - d)\, \mathrm{sign}(\alpha)
               (\tfrac{\pi}{2} - |\alpha|)\right)
 
-    for ``d < d_0`` (zero force beyond). The paper leaves ``Z`` open; here it is a
+    for ``d < d_0`` (zero force beyond); on a holonomic base a lateral repulsion drives ``vy``
+    and ``sign(alpha)`` is a ramp over :data:`TURN_RAMP` (:func:`obstacle_force`, extensions).
+    The paper leaves ``Z`` open; here it is a
     mass-damper ``Z(s) = m s + b`` acting from the fictitious force to the velocity, so
     ``m du/dt + b u = F`` (first-order, static gain ``1/b``, time constant ``m/b``).
 

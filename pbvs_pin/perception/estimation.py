@@ -198,8 +198,9 @@ boost at 2.5 held that, but left Experiment 1 at 8 px 10.6 px off over its last 
 graded): docs ``faults.md``, the table of thresholds."""
 
 MANOEUVRE_DECAY = 0.9
-"""After the detector fires the gains jump to the stated ones and return to the steady state's
-by this factor per frame (a time constant of 10 frames)."""
+"""After the detector fires, the boost (the share of the way from the steady state's gains to
+the stated ones) falls by this factor per frame unless new evidence holds it up (a time
+constant of 10 frames)."""
 
 
 class AdaptiveAlphaBetaFilter(AlphaBetaFilter):
@@ -264,7 +265,8 @@ class AdaptiveAlphaBetaFilter(AlphaBetaFilter):
         self._variance = np.zeros(3)
         self._differences = 0
         self.manoeuvres = 0
-        """Manoeuvres detected since construction (each start of a boost counts once)."""
+        """Manoeuvres detected since construction: each time the averaged innovation leaves
+:data:`MANOEUVRE_THRESHOLD` (frames that stay past it count once)."""
         super().__init__(alpha, beta, max_speed)
 
     def reset(self) -> None:
