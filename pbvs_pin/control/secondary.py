@@ -109,6 +109,19 @@ def heading_share(distance: float, angle: float, d0: float) -> float:
 
 
 @njit(cache=True, inline="always")
+def camera_heading(rotation: np.ndarray, q: np.ndarray) -> float:
+    """``psi``: the optical axis's heading on the floor from the platform's forward axis [rad].
+
+    Args:
+        rotation: ``wRc``. Shape (3, 3).
+        q: Configuration, a planar root joint first (``q[2:4]``: its cos and sin). Shape (nq,).
+    """
+    cx, cy = rotation[0, 2], rotation[1, 2]
+    bx, by = q[2], q[3]
+    return np.arctan2(bx * cy - by * cx, bx * cx + by * cy)
+
+
+@njit(cache=True, inline="always")
 def heading_term(rotation: np.ndarray, q: np.ndarray, gain: float, offset: float = 0.0) -> float:
     r"""The base-heading objective: turn the platform to where the camera looks.
 
@@ -144,8 +157,7 @@ def heading_term(rotation: np.ndarray, q: np.ndarray, gain: float, offset: float
         ``k_psi |c_h| (psi - psi_d)`` [rad/s], the difference wrapped to ``(-pi, pi]``.
     """
     cx, cy = rotation[0, 2], rotation[1, 2]
-    bx, by = q[2], q[3]
-    psi = np.arctan2(bx * cy - by * cx, bx * cx + by * cy) - offset
+    psi = camera_heading(rotation, q) - offset
     psi = np.arctan2(np.sin(psi), np.cos(psi))
     return gain * np.sqrt(cx * cx + cy * cy) * psi
 
@@ -158,10 +170,10 @@ def heading_at(model: MobileManipulator, arm: np.ndarray) -> float:
         arm: Arm positions [rad or m]. Shape (n_arm,).
 
     Returns:
-        The heading [rad] (:func:`heading_term`'s ``psi``, platform at the origin).
+        The heading [rad] (:func:`camera_heading`, platform at the origin).
     """
-    rotation = model.camera_pose(model.with_arm_positions(model.neutral(), arm)).rotation
-    return float(np.arctan2(rotation[1, 2], rotation[0, 2]))
+    q = model.with_arm_positions(model.neutral(), arm)
+    return float(camera_heading(model.camera_pose(q).rotation, q))
 
 
 DEPTH_REACH_FULL = 0.1

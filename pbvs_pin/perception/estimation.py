@@ -266,7 +266,7 @@ class AdaptiveAlphaBetaFilter(AlphaBetaFilter):
         self._differences = 0
         self.manoeuvres = 0
         """Manoeuvres detected since construction: each time the averaged innovation leaves
-:data:`MANOEUVRE_THRESHOLD` (frames that stay past it count once)."""
+        :data:`MANOEUVRE_THRESHOLD` (frames that stay past it count once)."""
         super().__init__(alpha, beta, max_speed)
 
     def reset(self) -> None:
@@ -274,7 +274,7 @@ class AdaptiveAlphaBetaFilter(AlphaBetaFilter):
         super().reset()
         self._history: list[tuple[float, np.ndarray]] = []
         self._drift = np.zeros(3)
-        self._boost = np.zeros(3)
+        self._boost = 0.0  # the share b, one for every axis
         self._evident = False
         self.innovation = np.zeros(3)
         """The newest residual over its steady-state spread (:func:`innovation_spread`) per
@@ -315,7 +315,7 @@ class AdaptiveAlphaBetaFilter(AlphaBetaFilter):
             evidence = min(share, 1.0)
         self.manoeuvres += int(evidence > 0.0 and not self._evident)
         self._evident = evidence > 0.0
-        self._boost = np.maximum(evidence, MANOEUVRE_DECAY * self._boost)
+        self._boost = max(evidence, MANOEUVRE_DECAY * self._boost)
         boost = self._boost
         self.gains = alpha + boost * (self.alpha - alpha), beta + boost * (self.beta - beta)
         return self.gains
