@@ -357,6 +357,20 @@ def cyton(load) -> pbvs_pin.MobileManipulator:
 
 
 @pytest.fixture(scope="session")
+def tiago_pro() -> pbvs_pin.MobileManipulator:
+    """PAL TIAGo Pro on its mecanum base (the zoo's robot file), loaded once per session."""
+    import warnings
+
+    from pbvs_pin.sim.sections import RobotSection
+    from pbvs_pin.study.zoo import load_zoo
+
+    robot_file = next(r for r in load_zoo(REPO_ROOT / "robots") if r.name == "tiago_pro")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # placement warnings
+        return RobotSection.from_toml(robot_file.table, str(robot_file.path)).build()
+
+
+@pytest.fixture(scope="session")
 def cyton_urdf() -> Path:
     return URDF_DIR / "pioneer_cyton.urdf"
 

@@ -8,8 +8,6 @@ avoidance.
 
 from __future__ import annotations
 
-import warnings
-from pathlib import Path
 from types import SimpleNamespace
 
 import mujoco
@@ -26,24 +24,6 @@ from pbvs_pin.plant.mujoco_plant import MujocoPlant
 from pbvs_pin.sim.loop import simulate
 from pbvs_pin.sim.metrics import summarize
 from pbvs_pin.sim.scenario import load_scenario
-from pbvs_pin.study.zoo import load_zoo
-
-ROBOTS = Path(__file__).resolve().parents[1] / "robots"
-
-
-def _zoo_robot(name: str):
-    return next(robot for robot in load_zoo(ROBOTS) if robot.name == name)
-
-
-@pytest.fixture(scope="module")
-def tiago_pro():
-    """PAL TIAGo Pro on its mecanum base (the zoo's robot file)."""
-    from pbvs_pin.sim.sections import RobotSection
-
-    robot_file = _zoo_robot("tiago_pro")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # placement warnings
-        return RobotSection.from_toml(robot_file.table, str(robot_file.path)).build()
 
 
 def test_the_paper_gains_and_lags_fit_a_holonomic_base(tiago_pro):

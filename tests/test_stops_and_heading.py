@@ -134,22 +134,16 @@ def test_the_heading_objective_turns_the_platforms_yaw_rate():
     assert not np.any(BaseHeading(2.0).contribution(no_pose, 2, 5))
 
 
-def test_the_heading_objective_is_on_for_a_holonomic_base_and_off_for_the_reference_robot(load):
+def test_the_heading_objective_is_on_for_a_holonomic_base_and_off_for_the_reference_robot(
+    cyton, tiago_pro
+):
     """Stretch's share (two wheels, an arm without depth reach) is checked in closed loop by
     :func:`test_stretch_re1_holds_experiment2_while_its_arm_sits_at_its_stops`."""
-    from conftest import REPO_ROOT
-
     from pbvs_pin.control.settings import ControllerSettings, secondary_objectives
-    from pbvs_pin.study.experiments import robot_file
 
     settings = ControllerSettings()
     kinds = {}
-    for name in ("pioneer_cyton", "tiago_pro"):
-        if name == "pioneer_cyton":
-            robot = load(name)
-        else:
-            spec = robot_file(str(REPO_ROOT / "robots" / f"{name}.toml"))
-            robot = spec.robot.build(spec.camera.intrinsics())
+    for name, robot in (("pioneer_cyton", cyton), ("tiago_pro", tiago_pro)):
         objectives = secondary_objectives(settings, robot, robot.home_arm)
         kinds[name] = [o.gain for o in objectives if isinstance(o, BaseHeading)]
     assert kinds["pioneer_cyton"] == [] and kinds["tiago_pro"] == [1.0]  # k_psi, in full
