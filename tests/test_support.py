@@ -13,7 +13,7 @@ import pytest
 
 from pbvs_pin import load_robot
 from pbvs_pin.control.secondary import SecondaryInput
-from pbvs_pin.control.support import KeepSupported
+from pbvs_pin.control.support import EDGE_TURN, KeepSupported
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.model.support import COM_MARGIN, SupportRows, at_origin
 
@@ -37,12 +37,12 @@ def _rows_by_hand(robot, q, margin) -> np.ndarray:
     return np.sort([cx - x0, x1 - cx, cy - y0, y1 - cy]) - margin
 
 
-def _reaching(robot) -> np.ndarray:
+def _reaching(robot, margin: float = COM_MARGIN) -> np.ndarray:
     """The home with the shoulder lift turned forward until the centre of mass is past the
-    margin by 2 cm (but inside the support)."""
+    margin by 2 cm (with the default margin, inside the support)."""
     q = robot.home()
     joint = robot.arm_q_indices[1]
-    rows = SupportRows(robot, robot.support, COM_MARGIN)
+    rows = SupportRows(robot, robot.support, margin)
     for _ in range(400):
         if rows.slack(at_origin(q))[0].min() < -0.02:
             return q
@@ -114,3 +114,69 @@ def test_a_holonomic_base_has_no_support_and_no_objective():
 def test_a_non_positive_gain_is_refused_by_name(ur5):
     with pytest.raises(GainError, match=r"KeepSupported\.gain"):
         KeepSupported(ur5, ur5.support, gain=0.0)
+
+
+def _looking(yaw: float) -> np.ndarray:
+    """``wRc`` of a camera whose optical axis lies level at ``yaw`` [rad] in the world."""
+    axis = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+    across = np.array([np.sin(yaw), -np.cos(yaw), 0.0])
+    return np.column_stack([across, np.cross(axis, across), axis])
+
+
+def _worst_row_gradient_by_hand(robot, q) -> np.ndarray:
+    """d(least row)/d(arm joints) by central differences of the rectangle's rows. Shape (n_arm,)."""
+    gradient = []
+    for index in robot.arm_q_indices:
+        up, down = q.copy(), q.copy()
+        up[index] += STEP
+        down[index] -= STEP
+        rows = _rows_by_hand(robot, up, 0.0)[0], _rows_by_hand(robot, down, 0.0)[0]
+        gradient.append((rows[0] - rows[1]) / (2 * STEP))
+    return np.array(gradient)
+
+
+def test_the_platform_turns_at_the_edge_only_while_the_posture_pushes_over_it(ur5):
+    """The turn ``min(1, -s / m) blocked * heading``, all by hand: ``psi`` is the camera's
+    yaw (the platform faces +x, the camera looks level), ``blocked`` the cosine between the
+    posture's pull and the way over the edge. ``theta_d`` lies further out than the arm, past
+    the edge, so the objective's margin is 0 (the target's) and the arm 2 cm past the edge."""
+    q = _reaching(ur5, margin=0.0)
+    theta = q[ur5.arm_q_indices]
+    pull = np.zeros(ur5.n_arm)  # theta_d - theta: the shoulder further forward
+    pull[1] = theta[1] - ur5.home_arm[1]
+    yaw = 0.4
+    state = SecondaryInput(theta, np.inf, 0.0, 0.01, _looking(yaw), q)
+    shortfall = -_rows_by_hand(ur5, q, 0.0)[0]
+    assert shortfall > 0.02
+    g = _worst_row_gradient_by_hand(ur5, q)
+    blocked = -(g @ pull) / (np.linalg.norm(g) * np.linalg.norm(pull))
+    assert 0.0 < blocked <= 1.0
+    expected = min(1.0, shortfall / COM_MARGIN) * blocked * yaw
+    turning = KeepSupported(ur5, ur5.support, target=theta + pull, heading=(1.0, 0.0, 1.0))
+    rate = turning.contribution(state, ur5.n_base, ur5.n)
+    assert rate[ur5.n_base - 1] == pytest.approx(expected, rel=1e-4)
+    assert rate[0] == 0.0
+    # the posture pulls back inside: the arm can carry it, no turn
+    inside = KeepSupported(ur5, ur5.support, target=theta - pull, heading=(1.0, 0.0, 1.0))
+    assert inside.contribution(state, ur5.n_base, ur5.n)[ur5.n_base - 1] == 0.0
+    # an obstacle within d0 at any angle, even abeam, keeps the yaw for avoidance
+    for angle in (0.0, np.pi / 2, -np.pi / 2):
+        near = SecondaryInput(theta, 0.9, angle, 0.01, _looking(yaw), q)
+        assert turning.contribution(near, ur5.n_base, ur5.n)[ur5.n_base - 1] == 0.0
+    # no heading gain (the default): no turn
+    plain = KeepSupported(ur5, ur5.support, target=theta + pull)
+    assert plain.contribution(state, ur5.n_base, ur5.n)[ur5.n_base - 1] == 0.0
+
+
+def test_the_turn_at_the_edge_is_given_where_the_heading_objective_is_off(ur5):
+    """A two-wheel base whose arm moves the camera along its axis has no heading objective
+    (``heading_factor`` 0): its support objective turns the platform with a share of ``k_psi``."""
+    from pbvs_pin.control.secondary import BaseHeading
+    from pbvs_pin.control.settings import ControllerSettings, secondary_objectives
+
+    settings = ControllerSettings()
+    objectives = secondary_objectives(settings, ur5, ur5.home_arm)
+    assert not [o for o in objectives if isinstance(o, BaseHeading)]
+    support = [o for o in objectives if isinstance(o, KeepSupported)]
+    assert [o.heading_gain for o in support] == [EDGE_TURN * settings.secondary.k_heading]
+    assert settings.secondary.k_heading == 1.0 and EDGE_TURN == 0.3

@@ -29,7 +29,7 @@ from pbvs_pin.control.secondary import (
     heading_factor,
     rest_outside_limit_zones,
 )
-from pbvs_pin.control.support import KeepSupported
+from pbvs_pin.control.support import EDGE_TURN, KeepSupported
 from pbvs_pin.control.tables import (
     CameraSection,
     CompensationSection,
@@ -278,9 +278,14 @@ def secondary_objectives(
         jacobian = model.camera_jacobian(model.home())
         reach = arm_depth_reach(jacobian, model.velocity_limits, model.n_base)
         gain = spec.k_heading * heading_factor(reach)
+    d0 = spec.d0 if spec.obstacle_avoidance else 0.0
     if gain > 0.0:  # two wheels and an arm that moves the camera along its axis: off
-        d0 = spec.d0 if spec.obstacle_avoidance else 0.0
         objectives.append(BaseHeading(gain, d0, heading_at(model, target)))
     if spec.support and model.support is not None:
-        objectives.append(KeepSupported(model, model.support, spec.k_support, target=target))
+        # with the heading objective off, the platform turns when the arm is at the edge
+        at_edge = EDGE_TURN * spec.k_heading if gain == 0.0 and model.n_base == 2 else 0.0
+        heading = (at_edge, heading_at(model, target) if at_edge > 0.0 else 0.0, d0)
+        objectives.append(
+            KeepSupported(model, model.support, spec.k_support, target=target, heading=heading)
+        )
     return objectives

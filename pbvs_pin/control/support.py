@@ -16,8 +16,30 @@ of ``Lambda`` is
 
 so that, where the null space lets it act in full, ``ds_i/dt = k_s (-s_i)``: the deficit
 closes at the rate ``k_s`` (``secondary.k_support``). Zero while every row keeps its margin, so
-a robot whose centre of mass stays inside runs bit for bit as without it. Evaluated in Python
-at each step (one ``pin.jacobianCenterOfMass``), beside the compiled step's objectives.
+a robot whose centre of mass stays inside runs bit for bit as without it.
+
+An arm held at the edge cannot carry eq. (19)'s return to ``theta_d`` either, when the way
+back runs over the edge: the pushes of (19) and of this objective cancel (measured: the UR10
+on the Pioneer 1.25 rad from ``theta_d`` at the end of Experiment 2, its pan turned 1.25 rad to
+where the camera looks, its straight way back 0.019 m past the front edge). Only the platform
+can then carry the return, by turning to where the camera looks. So, on a two-wheel platform
+whose heading objective is off (:func:`~pbvs_pin.control.secondary.heading_factor`), while a
+row is below its margin the objective also adds a share of the heading objective's turn
+(:func:`~pbvs_pin.control.secondary.heading_term`) with the share
+
+.. math:: w = \min\!\left(1, \frac{-s_i}{m}\right)
+          \frac{\max(0,\ -g^\top \tilde\theta)}{\|g\|\,\|\tilde\theta\|}\, s_d,\qquad
+          s_d = \mathrm{clip}\!\left(\frac{d - d_0}{d_0 / 2}, 0, 1\right)
+
+with ``theta~ = theta_d - theta`` (the posture's pull), ``m`` the home's margin
+(:data:`~pbvs_pin.model.support.COM_MARGIN`: the turn is in full at the edge itself), and
+``s_d`` 1 beyond ``1.5 d_0`` or with nothing seen; its gain is :data:`EDGE_TURN` ``k_psi``. The
+middle factor is how squarely (19) pulls the arm over the edge: 0 when the way home leads back
+inside, as it does for an arm that reached out after the target (without it the iiwa's and
+the Panda's Experiments 2-3 oscillated at 3.4-13 px RMS on MuJoCo, rule 3). ``s_d`` keeps the
+yaw for obstacle avoidance while an obstacle is within ``1.5 d_0`` at any angle (with the
+heading objective's own share, which gives an obstacle abeam the full turn, the UR10 hit
+Experiment 2's obstacle: clearance -0.12 m).
 """
 
 from __future__ import annotations
@@ -26,7 +48,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pbvs_pin.control.secondary import SecondaryInput, SecondaryObjective, check_positive
+from pbvs_pin.control.secondary import (
+    SecondaryInput,
+    SecondaryObjective,
+    check_positive,
+    heading_share,
+    heading_term,
+)
+from pbvs_pin.model.joint_angles import arm_difference
 from pbvs_pin.model.support import COM_MARGIN, SupportRows, at_origin
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -36,6 +65,11 @@ GRADIENT_FLOOR = 1e-6
 """``epsilon`` [m^2/rad^2]: below it the arm cannot move the centre of mass, and the
 objective asks for at most ``k_s (-s_i) g / epsilon``."""
 
+EDGE_TURN = 0.3
+"""The platform's turn at the edge as a share of ``k_psi`` (``secondary.k_heading``). Chosen by
+measurement: the full ``k_psi`` made the UR5's Experiment 3 on MuJoCo oscillate at 9.35 px RMS
+(rule 3; 1.32 with 0.3), and with 0.3 the UR10's Experiment 2 posture holds (0.055 rad)."""
+
 
 class KeepSupported(SecondaryObjective):
     """Push the arm back when the centre of mass comes within ``margin`` of the support's edge.
@@ -43,6 +77,9 @@ class KeepSupported(SecondaryObjective):
     Attributes:
         rows: The support rows (:class:`~pbvs_pin.model.support.SupportRows`).
         gain: ``k_s`` [1/s].
+        heading_gain: ``k_psi`` of the platform's turn at the edge [1/s]; 0: no turn.
+        heading_offset: ``psi_d``, the camera's heading at ``theta_d`` [rad].
+        d0: Distance at which obstacle avoidance starts [m]; 0: avoidance off.
     """
 
     def __init__(
@@ -52,6 +89,7 @@ class KeepSupported(SecondaryObjective):
         gain: float = 10.0,
         margin: float = COM_MARGIN,
         target: np.ndarray | None = None,
+        heading: tuple[float, float, float] = (0.0, 0.0, 0.0),
     ) -> None:
         """Rows of ``model`` on ``support`` (shape (m, 2), m >= 3, counter-clockwise) [m].
 
@@ -59,12 +97,15 @@ class KeepSupported(SecondaryObjective):
         of eq. (19), shape (n_arm,)) keeps less: a shipped recipe's home (the Z1's, the Kinova's)
         stands closer to an edge than the computed homes' 0.05 m, and a margin the target does
         not keep would hold the arm away from it for good (measured: the Z1 and Kinova arms
-        0.73 and 0.46 rad from ``theta_d`` at the end of Experiment 2).
+        0.73 and 0.46 rad from ``theta_d`` at the end of Experiment 2). ``heading`` is
+        ``(k_psi [1/s], psi_d [rad], d_0 [m])`` of the platform's turn at the edge (module
+        docstring); ``k_psi = 0`` leaves it out.
 
         Raises:
             GainError: If ``gain`` is not positive and finite.
         """
         check_positive("KeepSupported", gain=gain)
+        self.heading_gain, self.heading_offset, self.d0 = (float(x) for x in heading)
         support = np.asarray(support, dtype=float)
         self._data = model.model.createData()
         margins = np.full(len(support), float(margin))
@@ -74,9 +115,14 @@ class KeepSupported(SecondaryObjective):
             margins = np.minimum(margins, np.maximum(at_target, 0.0))
         self.rows = SupportRows(model, support, margins)
         self.gain = gain
+        self.target = None if target is None else np.asarray(target, dtype=float)
+        self.continuous = model.arm_continuous
 
     def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
-        """``[0, ..., Lambda_arm]``: zero unless a row is below its margin. Shape (n,)."""
+        """``[0, .., w Lambda_omega, Lambda_arm]``: zero unless a row is below its margin.
+
+        Shape (n,).
+        """
         out = np.zeros(n)
         if state.q is None:
             return out
@@ -86,4 +132,19 @@ class KeepSupported(SecondaryObjective):
             return out
         g = gradient[worst]
         out[n_base:] = self.gain * (-slack[worst]) * g / max(float(g @ g), GRADIENT_FLOOR)
+        if (
+            self.heading_gain > 0.0
+            and self.target is not None
+            and n_base >= 2
+            and state.camera_rotation is not None
+        ):
+            home = arm_difference(self.target, np.asarray(state.arm_positions), self.continuous)
+            size = float(np.linalg.norm(g) * np.linalg.norm(home))
+            blocked = max(0.0, -float(g @ home)) / size if size > 0.0 else 0.0
+            share = blocked * min(1.0, -slack[worst] / COM_MARGIN)
+            share *= heading_share(state.obstacle_distance, 0.0, self.d0)  # at any angle
+            rotation = np.asarray(state.camera_rotation, dtype=float)
+            q = np.asarray(state.q, dtype=float)
+            turn = heading_term(rotation, q, self.heading_gain, self.heading_offset)
+            out[n_base - 1] = share * turn
         return out

@@ -311,6 +311,7 @@ class SecondarySection(Section):
         1.0,
         "k_psi [1/s]: turn the platform to where the camera looks (secondary.heading_term): "
         "a holonomic one fully; a two-wheel one times heading_factor, 0 for an arm that moves "
-        "the camera along its axis (most); 0: off.",
+        "the camera along its axis (most), whose platform turns only while the support "
+        "objective holds the arm at the edge (support.KeepSupported); 0: off.",
         sign=NON_NEGATIVE,
     )
