@@ -136,33 +136,46 @@ def _worst_row_gradient_by_hand(robot, q) -> np.ndarray:
 
 
 def test_the_platform_turns_at_the_edge_only_while_the_posture_pushes_over_it(ur5):
-    """The turn ``min(1, -s / m) blocked * heading``, all by hand: ``psi`` is the camera's
-    yaw (the platform faces +x, the camera looks level), ``blocked`` the cosine between the
-    posture's pull and the way over the edge. ``theta_d`` lies further out than the arm, past
-    the edge, so the objective's margin is 0 (the target's) and the arm 2 cm past the edge."""
+    """The turn ``min(1, -s / m) blocked s_d (psi - psi_d)``, all by hand: ``psi`` is the
+    camera's yaw (the platform faces +x, the camera looks level), ``blocked`` the cosine between
+    the posture's pull and the way over the edge, ``s_d`` the obstacle's share. ``theta_d``
+    lies further out than the arm, past the edge, so the objective's margin is 0 (the
+    target's) and the arm 2 cm past the edge."""
     q = _reaching(ur5, margin=0.0)
     theta = q[ur5.arm_q_indices]
     pull = np.zeros(ur5.n_arm)  # theta_d - theta: the shoulder further forward
     pull[1] = theta[1] - ur5.home_arm[1]
-    yaw = 0.4
+    yaw, offset = 0.4, 0.1
     state = SecondaryInput(theta, np.inf, 0.0, 0.01, _looking(yaw), q)
     shortfall = -_rows_by_hand(ur5, q, 0.0)[0]
     assert shortfall > 0.02
     g = _worst_row_gradient_by_hand(ur5, q)
     blocked = -(g @ pull) / (np.linalg.norm(g) * np.linalg.norm(pull))
     assert 0.0 < blocked <= 1.0
-    expected = min(1.0, shortfall / COM_MARGIN) * blocked * yaw
-    turning = KeepSupported(ur5, ur5.support, target=theta + pull, heading=(1.0, 0.0, 1.0))
+    expected = min(1.0, shortfall / COM_MARGIN) * blocked * (yaw - offset)
+    heading = {"heading_gain": 1.0, "heading_offset": offset, "d0": 1.0}
+    turning = KeepSupported(ur5, ur5.support, target=theta + pull, **heading)
     rate = turning.contribution(state, ur5.n_base, ur5.n)
     assert rate[ur5.n_base - 1] == pytest.approx(expected, rel=1e-4)
     assert rate[0] == 0.0
-    # the posture pulls back inside: the arm can carry it, no turn
-    inside = KeepSupported(ur5, ur5.support, target=theta - pull, heading=(1.0, 0.0, 1.0))
-    assert inside.contribution(state, ur5.n_base, ur5.n)[ur5.n_base - 1] == 0.0
-    # an obstacle within d0 at any angle, even abeam, keeps the yaw for avoidance
+    # an obstacle halfway between d0 and 1.5 d0, at any angle: half the turn
+    for angle in (0.0, np.pi / 2):
+        half = SecondaryInput(theta, 1.25, angle, 0.01, _looking(yaw), q)
+        turn = turning.contribution(half, ur5.n_base, ur5.n)[ur5.n_base - 1]
+        assert turn == pytest.approx(expected / 2, rel=1e-4)
+    # within d0 at any angle, even abeam: the yaw is left to obstacle avoidance
     for angle in (0.0, np.pi / 2, -np.pi / 2):
         near = SecondaryInput(theta, 0.9, angle, 0.01, _looking(yaw), q)
         assert turning.contribution(near, ur5.n_base, ur5.n)[ur5.n_base - 1] == 0.0
+    # a continuous pan whose theta_d is a turn away: the same pull, the same turn
+    wrapped = KeepSupported(ur5, ur5.support, target=theta + pull, **heading)
+    wrapped.continuous = np.array([True] + [False] * (ur5.n_arm - 1))
+    wrapped.target = wrapped.target + np.array([2 * np.pi] + [0.0] * (ur5.n_arm - 1))
+    turn = wrapped.contribution(state, ur5.n_base, ur5.n)[ur5.n_base - 1]
+    assert turn == pytest.approx(expected, rel=1e-4)
+    # the posture pulls back inside: the arm can carry it, no turn
+    inside = KeepSupported(ur5, ur5.support, target=theta - pull, **heading)
+    assert inside.contribution(state, ur5.n_base, ur5.n)[ur5.n_base - 1] == 0.0
     # no heading gain (the default): no turn
     plain = KeepSupported(ur5, ur5.support, target=theta + pull)
     assert plain.contribution(state, ur5.n_base, ur5.n)[ur5.n_base - 1] == 0.0
@@ -170,13 +183,36 @@ def test_the_platform_turns_at_the_edge_only_while_the_posture_pushes_over_it(ur
 
 def test_the_turn_at_the_edge_is_given_where_the_heading_objective_is_off(ur5):
     """A two-wheel base whose arm moves the camera along its axis has no heading objective
-    (``heading_factor`` 0): its support objective turns the platform with a share of ``k_psi``."""
-    from pbvs_pin.control.secondary import BaseHeading
+    (``heading_factor`` 0): its support objective turns the platform with a share of ``k_psi``,
+    from the heading at ``theta_d``; none with ``k_psi = 0`` or without eq. (19)."""
+    from dataclasses import replace
+
+    from pbvs_pin.control.secondary import BaseHeading, heading_at
     from pbvs_pin.control.settings import ControllerSettings, secondary_objectives
 
-    settings = ControllerSettings()
-    objectives = secondary_objectives(settings, ur5, ur5.home_arm)
-    assert not [o for o in objectives if isinstance(o, BaseHeading)]
-    support = [o for o in objectives if isinstance(o, KeepSupported)]
-    assert [o.heading_gain for o in support] == [EDGE_TURN * settings.secondary.k_heading]
+    def support_of(settings):
+        objectives = secondary_objectives(settings, ur5, ur5.home_arm)
+        assert not [o for o in objectives if isinstance(o, BaseHeading)]
+        [support] = [o for o in objectives if isinstance(o, KeepSupported)]
+        return support
+
+    defaults = ControllerSettings()  # the scenarios switch eq. (19) and avoidance on
+    on = {"posture": True, "obstacle_avoidance": True}
+    settings = replace(defaults, secondary=replace(defaults.secondary, **on))
     assert settings.secondary.k_heading == 1.0 and EDGE_TURN == 0.3
+    support = support_of(settings)
+    assert support.heading_gain == EDGE_TURN * settings.secondary.k_heading
+    assert support.heading_offset == heading_at(ur5, ur5.home_arm)
+    assert support.d0 == settings.secondary.d0 > 0.0
+    for change in ({"k_heading": 0.0}, {"posture": False}):
+        quiet = replace(settings, secondary=replace(settings.secondary, **change))
+        assert support_of(quiet).heading_gain == 0.0, change
+
+
+@pytest.mark.parametrize(
+    "values", [{"heading_gain": -1.0}, {"d0": np.nan}, {"heading_offset": np.inf}]
+)
+def test_a_bad_turn_setting_is_refused_by_name(ur5, values):
+    [name] = values
+    with pytest.raises(GainError, match=rf"KeepSupported\.{name}"):
+        KeepSupported(ur5, ur5.support, **values)

@@ -283,9 +283,12 @@ def secondary_objectives(
         objectives.append(BaseHeading(gain, d0, heading_at(model, target)))
     if spec.support and model.support is not None:
         # with the heading objective off, the platform turns when the arm is at the edge
-        at_edge = EDGE_TURN * spec.k_heading if gain == 0.0 and model.n_base == 2 else 0.0
-        heading = (at_edge, heading_at(model, target) if at_edge > 0.0 else 0.0, d0)
-        objectives.append(
-            KeepSupported(model, model.support, spec.k_support, target=target, heading=heading)
-        )
+        turns = spec.posture and gain == 0.0 and model.n_base == 2
+        at_edge = EDGE_TURN * spec.k_heading if turns else 0.0
+        offset = heading_at(model, target) if at_edge > 0.0 else 0.0
+        support = KeepSupported(
+            model, model.support, spec.k_support, target=target, heading_gain=at_edge,
+            heading_offset=offset, d0=d0,
+        )  # fmt: skip
+        objectives.append(support)
     return objectives

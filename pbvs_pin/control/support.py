@@ -25,19 +25,21 @@ where the camera looks, its straight way back 0.019 m past the front edge). Only
 can then carry the return, by turning to where the camera looks. So, on a two-wheel platform
 whose heading objective is off (:func:`~pbvs_pin.control.secondary.heading_factor`), while a
 row is below its margin the objective also adds a share of the heading objective's turn
-(:func:`~pbvs_pin.control.secondary.heading_term`) with the share
+(:func:`~pbvs_pin.control.secondary.heading_term`, ``psi - psi_d``) with the share
 
 .. math:: w = \min\!\left(1, \frac{-s_i}{m}\right)
           \frac{\max(0,\ -g^\top \tilde\theta)}{\|g\|\,\|\tilde\theta\|}\, s_d,\qquad
           s_d = \mathrm{clip}\!\left(\frac{d - d_0}{d_0 / 2}, 0, 1\right)
 
-with ``theta~ = theta_d - theta`` (the posture's pull), ``m`` the home's margin
-(:data:`~pbvs_pin.model.support.COM_MARGIN`: the turn is in full at the edge itself), and
-``s_d`` 1 beyond ``1.5 d_0`` or with nothing seen; its gain is :data:`EDGE_TURN` ``k_psi``. The
+with ``theta~ = theta_d - theta`` (the posture's pull), ``m``
+:data:`~pbvs_pin.model.support.COM_MARGIN` (0.05 m: the turn is in full 0.05 m below the
+row's margin, at the edge itself for a row that keeps the home's), and ``s_d`` 0 within
+``d_0``, rising to 1 at ``1.5 d_0`` (and 1 with nothing seen); its gain is :data:`EDGE_TURN`
+``k_psi``. The
 middle factor is how squarely (19) pulls the arm over the edge: 0 when the way home leads back
 inside, as it does for an arm that reached out after the target (without it the iiwa's and
-the Panda's Experiments 2-3 oscillated at 3.4-13 px RMS on MuJoCo, rule 3). ``s_d`` keeps the
-yaw for obstacle avoidance while an obstacle is within ``1.5 d_0`` at any angle (with the
+the Panda's Experiments 2-3 oscillated at 3.4-13 px RMS on MuJoCo, rule 3). ``s_d`` leaves
+the yaw to obstacle avoidance near an obstacle at any angle (with the
 heading objective's own share, which gives an obstacle abeam the full turn, the UR10 hit
 Experiment 2's obstacle: clearance -0.12 m).
 """
@@ -55,6 +57,7 @@ from pbvs_pin.control.secondary import (
     heading_share,
     heading_term,
 )
+from pbvs_pin.exceptions import GainError
 from pbvs_pin.model.joint_angles import arm_difference
 from pbvs_pin.model.support import COM_MARGIN, SupportRows, at_origin
 
@@ -74,9 +77,15 @@ measurement: the full ``k_psi`` made the UR5's Experiment 3 on MuJoCo oscillate 
 class KeepSupported(SecondaryObjective):
     """Push the arm back when the centre of mass comes within ``margin`` of the support's edge.
 
+    There, when eq. (19) pulls the arm over the edge, it also turns the platform to where the
+    camera looks (module docstring).
+
     Attributes:
         rows: The support rows (:class:`~pbvs_pin.model.support.SupportRows`).
         gain: ``k_s`` [1/s].
+        target: ``theta_d`` of eq. (19) [rad or m], shape (n_arm,); None: no turn.
+        continuous: Which arm joints are continuous (wrapped in ``theta_d - theta``).
+            Shape (n_arm,).
         heading_gain: ``k_psi`` of the platform's turn at the edge [1/s]; 0: no turn.
         heading_offset: ``psi_d``, the camera's heading at ``theta_d`` [rad].
         d0: Distance at which obstacle avoidance starts [m]; 0: avoidance off.
@@ -89,7 +98,9 @@ class KeepSupported(SecondaryObjective):
         gain: float = 10.0,
         margin: float = COM_MARGIN,
         target: np.ndarray | None = None,
-        heading: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        heading_gain: float = 0.0,
+        heading_offset: float = 0.0,
+        d0: float = 0.0,
     ) -> None:
         """Rows of ``model`` on ``support`` (shape (m, 2), m >= 3, counter-clockwise) [m].
 
@@ -97,15 +108,22 @@ class KeepSupported(SecondaryObjective):
         of eq. (19), shape (n_arm,)) keeps less: a shipped recipe's home (the Z1's, the Kinova's)
         stands closer to an edge than the computed homes' 0.05 m, and a margin the target does
         not keep would hold the arm away from it for good (measured: the Z1 and Kinova arms
-        0.73 and 0.46 rad from ``theta_d`` at the end of Experiment 2). ``heading`` is
-        ``(k_psi [1/s], psi_d [rad], d_0 [m])`` of the platform's turn at the edge (module
-        docstring); ``k_psi = 0`` leaves it out.
+        0.73 and 0.46 rad from ``theta_d`` at the end of Experiment 2). ``heading_gain``
+        (``k_psi`` [1/s]), ``heading_offset`` (``psi_d`` [rad]) and ``d0`` (``d_0`` [m]) are
+        the platform's turn at the edge (module docstring); ``heading_gain = 0`` or no
+        ``target`` leaves it out.
 
         Raises:
-            GainError: If ``gain`` is not positive and finite.
+            GainError: If ``gain`` is not positive and finite, or ``heading_gain``, ``d0``
+                negative or not finite, or ``heading_offset`` not finite.
         """
         check_positive("KeepSupported", gain=gain)
-        self.heading_gain, self.heading_offset, self.d0 = (float(x) for x in heading)
+        for name, value in (("heading_gain", heading_gain), ("d0", d0)):
+            if not np.isfinite(value) or value < 0.0:
+                raise GainError(f"KeepSupported.{name}: expected >= 0, got {value}")
+        if not np.isfinite(heading_offset):
+            raise GainError(f"KeepSupported.heading_offset: expected finite, got {heading_offset}")
+        self.heading_gain, self.heading_offset, self.d0 = heading_gain, heading_offset, d0
         support = np.asarray(support, dtype=float)
         self._data = model.model.createData()
         margins = np.full(len(support), float(margin))
