@@ -13,7 +13,7 @@ import pytest
 
 from pbvs_pin import load_robot
 from pbvs_pin.control.secondary import SecondaryInput
-from pbvs_pin.control.support import EDGE_TURN, KeepSupported
+from pbvs_pin.control.support import EDGE_RAMP, EDGE_TURN, KeepSupported
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.model.support import COM_MARGIN, SupportRows, at_origin
 
@@ -37,14 +37,14 @@ def _rows_by_hand(robot, q, margin) -> np.ndarray:
     return np.sort([cx - x0, x1 - cx, cy - y0, y1 - cy]) - margin
 
 
-def _reaching(robot, margin: float = COM_MARGIN) -> np.ndarray:
+def _reaching(robot, margin: float = COM_MARGIN, past: float = 0.02) -> np.ndarray:
     """The home with the shoulder lift turned forward until the centre of mass is past the
-    margin by 2 cm (with the default margin, inside the support)."""
+    margin by ``past`` [m] (with the default margin, inside the support)."""
     q = robot.home()
     joint = robot.arm_q_indices[1]
     rows = SupportRows(robot, robot.support, margin)
     for _ in range(400):
-        if rows.slack(at_origin(q))[0].min() < -0.02:
+        if rows.slack(at_origin(q))[0].min() < -past:
             return q
         q[joint] += 0.005 * np.sign(robot.home()[joint] or -1.0)
     raise AssertionError("no posture past the margin")
@@ -136,23 +136,23 @@ def _worst_row_gradient_by_hand(robot, q) -> np.ndarray:
 
 
 def test_the_platform_turns_at_the_edge_only_while_the_posture_pushes_over_it(ur5):
-    """The turn ``min(1, -s / m) blocked s_d (psi - psi_d)``, all by hand: ``psi`` is the
+    """The turn ``min(1, -s / delta) blocked s_d (psi - psi_d)``, all by hand: ``psi`` is the
     camera's yaw (the platform faces +x, the camera looks level), ``blocked`` the cosine between
     the posture's pull and the way over the edge, ``s_d`` the obstacle's share. ``theta_d``
     lies further out than the arm, past the edge, so the objective's margin is 0 (the
-    target's) and the arm 2 cm past the edge."""
-    q = _reaching(ur5, margin=0.0)
+    target's) and the arm 1 cm past the edge: half-way up the ramp."""
+    q = _reaching(ur5, margin=0.0, past=0.01)
     theta = q[ur5.arm_q_indices]
     pull = np.zeros(ur5.n_arm)  # theta_d - theta: the shoulder further forward
     pull[1] = theta[1] - ur5.home_arm[1]
     yaw, offset = 0.4, 0.1
     state = SecondaryInput(theta, np.inf, 0.0, 0.01, _looking(yaw), q)
     shortfall = -_rows_by_hand(ur5, q, 0.0)[0]
-    assert shortfall > 0.02
+    assert 0.01 < shortfall < EDGE_RAMP
     g = _worst_row_gradient_by_hand(ur5, q)
     blocked = -(g @ pull) / (np.linalg.norm(g) * np.linalg.norm(pull))
     assert 0.0 < blocked <= 1.0
-    expected = min(1.0, shortfall / COM_MARGIN) * blocked * (yaw - offset)
+    expected = min(1.0, shortfall / EDGE_RAMP) * blocked * (yaw - offset)
     heading = {"heading_gain": 1.0, "heading_offset": offset, "d0": 1.0}
     turning = KeepSupported(ur5, ur5.support, target=theta + pull, **heading)
     rate = turning.contribution(state, ur5.n_base, ur5.n)

@@ -27,13 +27,12 @@ whose heading objective is off (:func:`~pbvs_pin.control.secondary.heading_facto
 row is below its margin the objective also adds a share of the heading objective's turn
 (:func:`~pbvs_pin.control.secondary.heading_term`, ``psi - psi_d``) with the share
 
-.. math:: w = \min\!\left(1, \frac{-s_i}{m}\right)
+.. math:: w = \min\!\left(1, \frac{-s_i}{\delta}\right)
           \frac{\max(0,\ -g^\top \tilde\theta)}{\|g\|\,\|\tilde\theta\|}\, s_d,\qquad
           s_d = \mathrm{clip}\!\left(\frac{d - d_0}{d_0 / 2}, 0, 1\right)
 
-with ``theta~ = theta_d - theta`` (the posture's pull), ``m``
-:data:`~pbvs_pin.model.support.COM_MARGIN` (0.05 m: the turn is in full 0.05 m below the
-row's margin, at the edge itself for a row that keeps the home's), and ``s_d`` 0 within
+with ``theta~ = theta_d - theta`` (the posture's pull), ``delta`` :data:`EDGE_RAMP` (the
+turn is in full 0.02 m below the row's margin), and ``s_d`` 0 within
 ``d_0``, rising to 1 at ``1.5 d_0`` (and 1 with nothing seen); its gain is :data:`EDGE_TURN`
 ``k_psi``. The
 middle factor is how squarely (19) pulls the arm over the edge: 0 when the way home leads back
@@ -68,10 +67,18 @@ GRADIENT_FLOOR = 1e-6
 """``epsilon`` [m^2/rad^2]: below it the arm cannot move the centre of mass, and the
 objective asks for at most ``k_s (-s_i) g / epsilon``."""
 
+EDGE_RAMP = 0.02
+"""``delta`` [m]: the deficit below a row's margin at which the platform's turn at the edge is
+in full. Chosen by measurement: with 0.05 an unshipped UR5 with limited joints
+(example-robot-data's ``ur5_limited``) on the Pioneer ended Experiment 2 1.19 rad from
+``theta_d``, held 0.01 m below the margin where the turn was a fifth of its gain (0.045 rad
+with 0.02)."""
+
 EDGE_TURN = 0.3
 """The platform's turn at the edge as a share of ``k_psi`` (``secondary.k_heading``). Chosen by
 measurement: the full ``k_psi`` made the UR5's Experiment 3 on MuJoCo oscillate at 9.35 px RMS
-(rule 3; 1.32 with 0.3), and with 0.3 the UR10's Experiment 2 posture holds (0.055 rad)."""
+(rule 3; with 0.3, 2.58 and 1.32 with ramps of 0.02 and 0.05 m), and with 0.3 the UR10's
+Experiment 2 posture holds (0.055 rad)."""
 
 
 class KeepSupported(SecondaryObjective):
@@ -159,7 +166,7 @@ class KeepSupported(SecondaryObjective):
             home = arm_difference(self.target, np.asarray(state.arm_positions), self.continuous)
             size = float(np.linalg.norm(g) * np.linalg.norm(home))
             blocked = max(0.0, -float(g @ home)) / size if size > 0.0 else 0.0
-            share = blocked * min(1.0, -slack[worst] / COM_MARGIN)
+            share = blocked * min(1.0, -slack[worst] / EDGE_RAMP)
             share *= heading_share(state.obstacle_distance, 0.0, self.d0)  # at any angle
             rotation = np.asarray(state.camera_rotation, dtype=float)
             q = np.asarray(state.q, dtype=float)
