@@ -8,7 +8,7 @@ Run: ``python benchmarks/control_step.py``. Prints, per robot, the median time o
 control step (kinematic controller, eq. 34, plus dynamic compensation, eq. 20) and of the
 Pinocchio calls that step makes (joint Jacobians, camera frame placement and Jacobian, CRBA,
 nonlinear effects, gravity), both measured in this run, and their ratio; where the step's time
-goes (Pinocchio, Python glue, passing the 18 arguments to compiled code, the compiled
+goes (Pinocchio, Python glue, passing the 20 arguments to compiled code, the compiled
 arithmetic) and the ratio it would have with no arithmetic at all (its floor); then the
 real-time factor of a closed-loop simulation with a 1 kHz controller on the reference robot, its
 cost per simulated second against the number of arm joints (a Panda on the reference platform
@@ -30,6 +30,7 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
+from pbvs_pin.control.secondary import split_objectives
 from pbvs_pin.control.step import FusedControlStep, fused_control_step
 from pbvs_pin.perception.camera_frame import CameraFrame
 from pbvs_pin.perception.features import ImageMeasurement
@@ -64,8 +65,8 @@ def _interleaved(*functions, repeats: int = REPEATS) -> tuple[float, ...]:
 
 
 @njit
-def _no_op(a, b, c, d, e, f, g, h, i, j, k, m, n, o, p, dt, params, indices, state) -> None:
-    """A compiled call that does nothing with the fused step's 19 arguments."""
+def _no_op(a, b, c, d, e, f, g, h, i, j, k, m, n, o, p, seen, dt, params, indices, state) -> None:
+    """A compiled call that does nothing with the fused step's 20 arguments."""
 
 
 def control_step_calls(
@@ -96,7 +97,7 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, flo
     Returns the step, its Pinocchio calls, their median ratio, the compiled call alone and a
     compiled call that does nothing with the same arguments. The difference step - Pinocchio
     calls - compiled call is the Python glue; compiled call - no-op is the compiled arithmetic;
-    the no-op is the price of calling compiled code with the step's 18 arguments.
+    the no-op is the price of calling compiled code with the step's 20 arguments.
     """
     scenario = load_scenario("experiment1").with_values(**{"robot.name": robot_name})
     setup = build(scenario)
@@ -109,7 +110,7 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, flo
     control = setup.control
     fused = FusedControlStep(
         setup.model, setup.features, setup.xi_d, setup.law, control.compensator,
-        setup.objectives,
+        *split_objectives(setup.objectives, ()),
     )  # fmt: skip
     laser, target_velocity = np.array([np.inf, 0.0]), np.zeros(3)
 
@@ -128,7 +129,7 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, flo
         pin.getFrameJacobian(model, data, frame, pin.LOCAL).copy(),
         data.oMf[frame].rotation.copy(), data.oMf[frame].translation.copy(), data.M.copy(),
         data.nle.copy(), data.g.copy(), q, v, measurement.points, measurement.depths,
-        np.zeros((0, 3)), float("nan"), target_velocity, laser, np.zeros(fused.model.n), dt,
+        np.zeros((0, 3)), float("nan"), target_velocity, laser, np.zeros(fused.model.n), True, dt,
         fused.params, fused.indices, fused.state,
     )  # fmt: skip
 

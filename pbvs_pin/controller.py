@@ -25,8 +25,9 @@ Inside, in the order of the paper's Fig. 3:
 3. features ``xi`` and ``J``, ``J_o`` of eq. (3), secondary objectives ``Lambda`` (eq. 16),
    the upright row and the loop-gain net (:mod:`pbvs_pin.control.upright`) feed the kinematic
    controller of eq. (34), whose command ``u`` goes through the dynamic compensation of
-   eq. (20), in one compiled call (:mod:`pbvs_pin.control.step`) for the passivity law; a
-   user's own objectives are evaluated in Python before that call and enter it as one input.
+   eq. (20), in one compiled call (:mod:`pbvs_pin.control.step`), for either law and whether
+   or not anything is seen; a user's own objectives are evaluated in Python before that call
+   and enter it as one input.
 
 Bad input at run time: a wrong type or shape, a non-finite encoder value, a value beyond the
 physical bounds of :mod:`pbvs_pin.control.bounds` in ``t``, ``q``, ``v`` or
@@ -57,15 +58,12 @@ import pinocchio as pin
 
 from pbvs_pin.compile_cache import announce_compiles
 from pbvs_pin.control import bounds, layout
-from pbvs_pin.control.balanced import joint_room
 from pbvs_pin.control.encoders import TIME_TOLERANCE, EncoderHistory
 from pbvs_pin.control.gating import FaultCounts, InnovationGate
 from pbvs_pin.control.kinematic import ControlOutput
 from pbvs_pin.control.odometry import OdometryJumps
 from pbvs_pin.control.secondary import (
     SecondaryObjective,
-    secondary_input,
-    secondary_vector,
     split_objectives,
     user_objectives,
 )
@@ -79,7 +77,6 @@ from pbvs_pin.control.settings import (
 )
 from pbvs_pin.control.step import FusedControlStep
 from pbvs_pin.control.tracking import TargetTracker
-from pbvs_pin.control.upright import upright_row
 from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
 from pbvs_pin.model.camera import MIN_DEPTH
 from pbvs_pin.model.robot import UNIT_TOLERANCE, MobileManipulator
@@ -177,9 +174,16 @@ class Controller:
         features: The feature set: the paper's two spheres unless you gave your own.
         xi_d: Desired features [px]. Shape (r,).
         posture_target: ``theta_d`` of eq. (19) [rad or m]. Shape (n_arm,).
-        law: The kinematic controller (eq. 34, or the IBVS baseline).
-        compensator: The dynamic compensation (eq. 20) of the modular path.
+        law: The kinematic controller's gains (eq. 34, or the IBVS baseline), which the
+            compiled step packs.
+        fused: The compiled step (:class:`~pbvs_pin.control.step.FusedControlStep`): the one
+            path every step takes, seen or not, and the only copy of the step's state.
+        compensator: The dynamic compensation's settings (eq. 20: rows, ``K_D``, ``tau``), which
+            the compiled step packs; its ``step`` is the tests' reference, not run here.
         objectives: The secondary objectives: the settings' built-in ones, then the user's.
+            The compiled step packs the built-in ones' gains and keeps their state (the
+            obstacle impedance); their own ``contribution`` is the tests' reference, not run
+            here. The others (the support objective, the user's) are called each step.
         user_objectives: The user's own objectives, as given.
         tracker: The newest measurement, prediction, hold and velocity filter.
         history: The encoder readings of the last ``settings.history`` seconds.
@@ -266,7 +270,6 @@ class Controller:
         built_in = secondary_objectives(settings, model, self.posture_target)
         self.objectives = [*built_in, *self.user_objectives]
         compiled, in_python = split_objectives(built_in, self.user_objectives)
-        self._arm_limits = model.arm_position_limits()
         spec = settings.estimator
         self.counts = FaultCounts()
         gate = InnovationGate(
@@ -278,12 +281,9 @@ class Controller:
             model, estimator, spec.predict, spec.hold, spec.smoothing, gate
         )
         self.history.clear()
-        self.fused = None
-        if FusedControlStep.supports(self.law, compiled):
-            self.fused = FusedControlStep(
-                model, self.features, self.xi_d, self.law, self.compensator, compiled,
-                in_python,
-            )  # fmt: skip
+        self.fused = FusedControlStep(
+            model, self.features, self.xi_d, self.law, self.compensator, compiled, in_python
+        )
         self.laser = np.array([np.inf, 0.0])
         self._t = -np.inf
         limits = self.law.velocity_limits
@@ -291,7 +291,7 @@ class Controller:
         self._odometry = OdometryJumps(model.model, (2 * limits[0], 2 * limits[model.n_base - 1]))
         self._newest_capture = -np.inf
         self._latency_seen = float("nan")
-        self._diagnostics: tuple[ControlOutput, tuple | None] | None = None
+        self._no_error = np.full(self.features.size, np.nan)
 
     def step(
         self,
@@ -368,9 +368,7 @@ class Controller:
 
     def diagnostics(self) -> tuple[ControlOutput, tuple[np.ndarray, np.ndarray] | None]:
         """The last step's kinematic output and ``(J, J_o)`` [px per unit] (None unseen)."""
-        if self._diagnostics is None:
-            return self.fused.output()
-        return self._diagnostics
+        return self.fused.output()
 
     def _checked(self, t, q, v, laser, target_velocity) -> tuple:
         """The inputs as float arrays, checked (see :meth:`step`'s Raises)."""
@@ -519,50 +517,20 @@ class Controller:
     ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, bool]:
         """``u``, ``v_ref``, ``V2``, the error, and whether anything was servoed on.
 
-        The compiled step when it applies and the target is seen; else the modular classes.
+        One compiled call, seen or not (:class:`~pbvs_pin.control.step.FusedControlStep`).
         """
         fused, tracker = self.fused, self.tracker
-        if fused is not None:
-            measurement = tracker.choose(t)
-            if measurement is not None:
-                self._diagnostics = None
-                predict_from = None
-                if tracker.predicting:  # the step writes the prediction into measurement
-                    predict_from = (tracker.world, t - tracker.capture_time)
-                u, v_ref, v2 = fused.step(q, v, measurement, velocity, self.laser, dt, predict_from)
-                return u, v_ref, v2, fused.views.xi - self.xi_d, True
-            fused.restart_derivative()  # the command derivative restarts after a loss
-        else:
-            measurement = tracker.current(t, q, velocity)
-        output, jacobians = self._modular(q, measurement, velocity, dt)
-        self._diagnostics = (output, jacobians)
-        v_ref, v2 = self.compensator.step(q, v, output.u, dt)
-        return output.u, v_ref, v2, output.error, measurement is not None
-
-    def _modular(
-        self, q: np.ndarray, measurement: ImageMeasurement | None, velocity: np.ndarray, dt: float
-    ) -> tuple[ControlOutput, tuple[np.ndarray, np.ndarray] | None]:
-        """Kinematic controller on the measurement; zero command when there is none."""
-        model = self.model
-        camera_jacobian = model.camera_jacobian_unchecked(q)  # q checked by step
-        rotation = model.data.oMf[model.camera_frame_id].rotation
-        state = secondary_input(model, q, self.laser, dt, rotation)
-        theta = state.arm_positions
-        secondary = secondary_vector(self.objectives, state, model.n_base, model.n)
+        measurement = tracker.choose(t)
+        predict_from = None
+        if measurement is not None and tracker.predicting:  # the step writes the prediction
+            predict_from = (tracker.world, t - tracker.capture_time)
+        u, v_ref, v2 = fused.step(q, v, measurement, velocity, self.laser, dt, predict_from)
         if measurement is None:
-            return self.law.zero_output(self.features.size), None
-        xi, jacobian, object_jacobian = self.features.jacobians_from_measurement(
-            model.camera, measurement, camera_jacobian, rotation.T
-        )
-        room = joint_room(theta, *self._arm_limits, model.n_base, model.n)
-        output = self.law.step(
-            xi - self.xi_d, jacobian, object_jacobian, velocity, secondary,
-            upright_row(rotation, camera_jacobian), room,
-        )  # fmt: skip
-        return output, (jacobian, object_jacobian)
+            return u, v_ref, v2, self._no_error, False
+        return u, v_ref, v2, fused.views.xi - self.xi_d, True
 
     def _warm_up(self) -> None:
-        """Run both paths once on the home posture, then forget it: the kernels are compiled."""
+        """Step once seen and once unseen on the home posture, then forget: compiles the step."""
         model = self.model
         q, v = model.home(), np.zeros(model.n)
         k = self.features.n_points  # the paper's two: one above the other

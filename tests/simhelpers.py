@@ -123,7 +123,8 @@ def controller_with_first_frame(scenario: Scenario, modular: bool = False):
 
     Args:
         scenario: The scenario.
-        modular: Step the modular classes instead of the compiled step.
+        modular: Step the modular classes instead of the compiled step
+            (:func:`step_modular_reference`).
     """
     from pbvs_pin import CameraFrame
     from pbvs_pin.sim.setup import build
@@ -131,7 +132,7 @@ def controller_with_first_frame(scenario: Scenario, modular: bool = False):
     setup = build(scenario)
     control = setup.control
     if modular:
-        control.fused = None
+        step_modular_reference(control)
     q = setup.plant.q
     points, depths = setup.model.camera.project_world(
         setup.model.camera_pose(q), setup.target.centres(0.0)
@@ -139,3 +140,51 @@ def controller_with_first_frame(scenario: Scenario, modular: bool = False):
     frame = CameraFrame.seen(0.0, points, depths)
     control.step(0.0, q, np.zeros(setup.model.n), frame, target_velocity=np.zeros(3))
     return setup, control
+
+
+def step_modular_reference(control) -> None:
+    """Make ``control`` step the modular classes in place of its compiled step.
+
+    The reference composition of the control step, one class per equation: the tracker's
+    NumPy prediction (``TargetTracker.current``), the objectives' ``contribution`` (eq. 16,
+    each with its own state), ``PassivityController.step`` (eq. 34) and
+    ``DynamicCompensator.step`` (eq. 20, its own derivative filter). With nothing to servo on
+    the command is zero and the derivative restarts from zero, as the controller documents.
+    ``control.diagnostics()`` then gives the reference's output; ``control.reference`` is True.
+    """
+    from pbvs_pin.control.balanced import joint_room
+    from pbvs_pin.control.secondary import secondary_input, secondary_vector
+    from pbvs_pin.control.upright import upright_row
+
+    model, last = control.model, {}
+    limits = model.arm_position_limits()
+
+    def command(t, q, v, velocity, dt):
+        measurement = control.tracker.current(t, q, velocity)
+        compensator = control.compensator
+        camera_jacobian = model.camera_jacobian_unchecked(q)
+        rotation = model.data.oMf[model.camera_frame_id].rotation
+        state = secondary_input(model, q, control.laser, dt, rotation)
+        secondary = secondary_vector(control.objectives, state, model.n_base, model.n)
+        if measurement is None:
+            last["output"] = control.law.zero_output(control.features.size), None
+            compensator.u_dot[:] = 0.0
+            compensator.has_previous = False
+            v_ref, v2 = compensator.step(q, v, np.zeros(model.n), dt)
+            compensator.has_previous = False
+            return np.zeros(model.n), v_ref, v2, np.full(control.features.size, np.nan), False
+        xi, jacobian, object_jacobian = control.features.jacobians_from_measurement(
+            model.camera, measurement, camera_jacobian, rotation.T
+        )
+        room = joint_room(state.arm_positions, *limits, model.n_base, model.n)
+        output = control.law.step(
+            xi - control.xi_d, jacobian, object_jacobian, velocity, secondary,
+            upright_row(rotation, camera_jacobian), room,
+        )  # fmt: skip
+        last["output"] = output, (jacobian, object_jacobian)
+        v_ref, v2 = compensator.step(q, v, output.u, dt)
+        return output.u, v_ref, v2, output.error, True
+
+    control._command = command
+    control.diagnostics = lambda: last["output"]
+    control.reference = True

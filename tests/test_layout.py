@@ -82,8 +82,9 @@ def test_step_scalars_stored_by_name_are_read_by_name(indices):
     block = layout.state_views(state, indices).scalars
     values = layout.StepScalars(
         has_previous=1.0, valid=1.0, storage=0.3, sigma_min=0.02, damped=1.0, factor=0.5, v2=0.1,
-        loop_gain=0.7, gain_factor=1.0, sigma_phi=0.3, upright_weight=1.0, upright_angle=-0.1,
+        loop_gain=0.7, gain_factor=1.0, sigma_phi=0.3, upright_weight=1.0, upright_angle=-0.1, seen=1.0,
     )  # fmt: skip
     layout.store(block, values)
     assert layout.step_scalars(block) == values
     assert block[layout.slot(layout.StepScalars, "v2")] == 0.1
+    assert block[layout.slot(layout.StepScalars, "seen")] == 1.0

@@ -118,9 +118,7 @@ class Loop:
         assert np.isfinite(command.v_ref).all() and np.isfinite(command.u).all()
         assert np.all(np.abs(command.v_ref) <= self.limits + 1e-12)
         assert np.linalg.norm(command.target_velocity) <= 10.0 + 1e-9
-        fused = self.controller.fused
-        if fused is not None:
-            assert np.all(np.abs(fused.views.impedance_velocity) < 1e3)
+        assert np.all(np.abs(self.controller.fused.views.impedance_velocity) < 1e3)
 
 
 def _is_number(value) -> bool:

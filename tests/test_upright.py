@@ -15,6 +15,7 @@ import pytest
 from simhelpers import controller_with_first_frame
 
 from pbvs_pin.control.kinematic import PassivityController, ServoGains
+from pbvs_pin.control.secondary import split_objectives
 from pbvs_pin.control.step import FusedControlStep
 from pbvs_pin.control.upright import (
     LOOP_GAIN_MARGIN,
@@ -107,7 +108,7 @@ def _setup(name: str, experiment: str = "experiment4", modular: bool = True, **g
         if not modular:  # the compiled step packs the law's gains when it is built
             control.fused = FusedControlStep(
                 control.model, control.features, control.xi_d, control.law,
-                control.compensator, control.objectives,
+                control.compensator, *split_objectives(control.objectives, ()),
             )  # fmt: skip
     return setup, control
 

@@ -51,8 +51,10 @@ __all__ = [
 ]
 
 
-TRANSPOSE, PSEUDOINVERSE, BALANCED = 0, 1, 2
-"""The feedback laws, by their code in the compiled step."""
+TRANSPOSE, PSEUDOINVERSE, BALANCED, IBVS = 0, 1, 2, 3
+"""The feedback laws, by their code in the compiled step; :data:`IBVS` is the classic law of
+the baseline (:mod:`pbvs_pin.control.ibvs`, ``controller.law = "ibvs"``), not a
+``controller.feedback`` value."""
 FEEDBACK_LAWS = ("transpose", "pseudoinverse", "balanced")
 """Their names, in code order (the ``controller.feedback`` key)."""
 
@@ -195,7 +197,8 @@ def passivity_law(
         damping: ``[sigma_0, mu_max]`` of the pseudo-inverse. Shape (2,).
         limits: Velocity limits. Shape (n,).
         feedback_law: :data:`TRANSPOSE` (the paper's ``nu``), :data:`PSEUDOINVERSE`
-            (``J# K_c e``) or :data:`BALANCED` (:func:`balanced_feedback`).
+            (``J# K_c e``), :data:`BALANCED` (:func:`balanced_feedback`) or :data:`IBVS`
+            (``J# k e``, constant ``k = lambda``: the classic law, :mod:`~pbvs_pin.control.ibvs`).
         upright: ``[phi, j_phi]`` (:func:`~pbvs_pin.control.upright.upright_row`). Shape (n + 1,).
         safety: The departures' settings; ``camera_period = 0`` turns the loop-gain net off.
         room_up: Each velocity's room towards its upper limit (:func:`joint_room`). Shape (n,).
@@ -236,7 +239,10 @@ def passivity_law(
             k = gain_factor * k
     kc_error = np.empty(r)
     for i in range(r):
-        kc_error[i] = k[i] / (1.0 + abs(error[i])) * error[i]
+        if feedback_law == IBVS:  # a constant gain: no K_c shaping
+            kc_error[i] = k[i] * error[i]
+        else:
+            kc_error[i] = k[i] / (1.0 + abs(error[i])) * error[i]
     shaped = np.empty(n)
     for j in range(n):
         shaped[j] = k1[j] * np.tanh(k2[j] * secondary[j])
@@ -251,7 +257,7 @@ def passivity_law(
     for _ in range(2):  # the second pass without the joints at their stops (.stops)
         inverse = weighted_inverse(weight_inverse, weights)
         pinv, sigma_min, damped = damped_pseudo_inverse(jacobian, inverse, damping[0], damping[1])
-        if feedback_law == PSEUDOINVERSE:
+        if feedback_law == PSEUDOINVERSE or feedback_law == IBVS:
             feedback = matvec(pinv, kc_error)
         feedforward = matvec(pinv, demand)
         held = weights * shaped
@@ -467,6 +473,8 @@ class PassivityController:
             float(gains.camera_period),
             float(gains.loop_gain_margin),
         )
+        self.feedback_law = gains.feedback_law
+        """The feedback's code in :func:`passivity_law` (:data:`TRANSPOSE`, ...)."""
         self._k: np.ndarray | None = None
         self.room = np.ones(n)
         """Room of each velocity towards its limits (:func:`joint_room`): none is near one."""
@@ -526,7 +534,7 @@ class PassivityController:
         law = passivity_law(
             error_px / scale, jacobian_px / scale, object_jacobian_px / scale, target_velocity,
             secondary, self.feature_gains(r), self.k1, self.k2, self.weight_inverse,
-            self.damping, self.velocity_limits, self.gains.feedback_law, upright, self.safety,
+            self.damping, self.velocity_limits, self.feedback_law, upright, self.safety,
             *(room if room is not None else (self.room, self.room)),
         )  # fmt: skip
         if not law.valid:

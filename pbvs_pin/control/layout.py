@@ -197,6 +197,8 @@ class StepScalars(NamedTuple):
     """``beta``, how much of the roll was removed from the null space [1]."""
     upright_angle: float
     """The image's upright angle ``phi`` [rad]."""
+    seen: float
+    """The step servoed on a measurement (else ``u`` is zero and the rest is NaN or neutral)."""
 
 
 SIZES = len(Sizes._fields)
@@ -360,6 +362,7 @@ def step_scalars(block: np.ndarray) -> StepScalars:
         sigma_phi=block[9],
         upright_weight=block[10],
         upright_angle=block[11],
+        seen=block[12],
     )
 
 

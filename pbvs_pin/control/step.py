@@ -10,10 +10,16 @@ classes do, each from the module named for it: the secondary objectives of eqs. 
 objectives once, in the buffers named by :mod:`pbvs_pin.control.layout`; then each step makes
 its Pinocchio calls and one call of :func:`fused_control_step`, which also brings the newest
 frame up to now when the tracker predicts (:func:`pbvs_pin.control.tracking.predict_points`,
-which the modular path calls too). A user's own secondary objectives
+which the tracker's NumPy reference calls too). A user's own secondary objectives
 (:class:`~pbvs_pin.control.secondary.SecondaryObjective` subclasses) are evaluated in Python
-before the call and enter it as one input, added to the built-in terms of ``Lambda``. A
-scenario with the IBVS baseline uses the modular classes.
+before the call and enter it as one input, added to the built-in terms of ``Lambda``. It is
+the controller's only path: the IBVS baseline is its feedback law
+:data:`~pbvs_pin.control.kinematic.IBVS` (:mod:`pbvs_pin.control.ibvs`), and a step with
+nothing to servo on runs it too (the objectives' state steps, the command is zero, eq. (20)
+brakes and the command's derivative restarts from zero). The modular classes
+(:meth:`PassivityController.step <pbvs_pin.control.kinematic.PassivityController.step>`,
+:meth:`DynamicCompensator.step <pbvs_pin.control.compensation.DynamicCompensator.step>`, the
+objectives' ``contribution``) are the reference the tests compare it with.
 
 The equations' kernels are declared ``inline="always"``: Numba compiles their bodies into the
 fused step, so that no call and no tuple of returned arrays passes between them (on the
@@ -40,7 +46,6 @@ from pbvs_pin.control.compensation import (
     compensation_law,
     filter_derivative,
 )
-from pbvs_pin.control.ibvs import ClassicIbvs
 from pbvs_pin.control.kinematic import ControlOutput, PassivityController, passivity_law
 from pbvs_pin.control.secondary import (
     BUILT_IN,
@@ -61,6 +66,7 @@ from pbvs_pin.control.secondary import (
 )
 from pbvs_pin.control.tracking import predict_points
 from pbvs_pin.control.upright import Safety, upright_row
+from pbvs_pin.exceptions import GainError
 from pbvs_pin.linalg import matmul
 from pbvs_pin.model.joint_angles import arm_angles
 from pbvs_pin.perception.features import ImageMeasurement, feature_jacobians
@@ -92,12 +98,16 @@ def fused_control_step(
     target_velocity: np.ndarray,
     laser: np.ndarray,
     user_secondary: np.ndarray,
+    seen: bool,
     dt: float,
     params: np.ndarray,
     indices: np.ndarray,
     state: np.ndarray,
 ) -> None:
     """One whole control step in one call: eqs. (16)-(19), (3), (34) and (20).
+
+    The secondary objectives (and the obstacle impedance's state) step whether or not the
+    target is seen; unseen, the command is zero and eq. (20) brakes.
 
     Args:
         frame_jacobian: Camera frame Jacobian, ``pin.LOCAL``. Shape (6, nv).
@@ -118,6 +128,8 @@ def fused_control_step(
         laser: ``[d, alpha]`` of the nearest return [m, rad]. Shape (2,).
         user_secondary: The user's objectives' part of ``Lambda``, added to the built-in
             terms. Shape (n,).
+        seen: There is a measurement (``points``, ``depths``, or the prediction) to servo on;
+            False: the command is zero and ``points``, ``depths`` are not read.
         dt: Control period [s].
         params: Constant floats, :class:`~pbvs_pin.control.layout.Parameters`.
         indices: Sizes and constant integers, :class:`~pbvs_pin.control.layout.Indices`.
@@ -154,6 +166,22 @@ def fused_control_step(
         secondary[n_base - 1] += share * heading
     for j in range(n):  # the user's objectives, evaluated before the call
         secondary[j] += user_secondary[j]
+    if seen:
+        _servo(
+            frame_jacobian, rotation, translation, mass_upper, bias, gravity, v, points,
+            depths, world, age, target_velocity, secondary, theta, dt, p, setting, index, out,
+        )  # fmt: skip
+    else:  # nothing to servo on: eq. (20) brakes a zero command; its derivative restarts
+        _brake(mass_upper, bias, gravity, v, p, out)
+
+
+@njit(cache=True, inline="always")
+def _servo(
+    frame_jacobian, rotation, translation, mass_upper, bias, gravity, v, points, depths, world,
+    age, target_velocity, secondary, theta, dt, p, setting, index, out,
+) -> None:  # fmt: skip
+    """Eqs. (3), (34) and (20) on what is seen (arguments as :func:`fused_control_step`'s)."""
+    n = secondary.shape[0]
     if not np.isnan(age):  # the prediction: the frame's points moved by phat_dot, eq. (2) at q
         image, image_depths = predict_points(
             world, target_velocity, age, translation, rotation, setting.focal
@@ -177,7 +205,7 @@ def fused_control_step(
     safety = Safety(
         setting.upright, setting.upright_rate, setting.camera_period, setting.loop_gain_margin
     )
-    room_up, room_down = joint_room(theta, p.lower, p.upper, n_base, n)
+    room_up, room_down = joint_room(theta, p.lower, p.upper, setting.n_base, n)
     law = passivity_law(
         error, jacobian, object_jacobian, target_velocity, secondary, p.k, p.k1, p.k2,
         p.weight_inverse, p.pseudo_inverse_damping, p.velocity_limits, setting.feedback_law,
@@ -213,8 +241,34 @@ def fused_control_step(
             sigma_phi=law.gains.sigma_phi,
             upright_weight=law.gains.upright_weight,
             upright_angle=upright[0],
+            seen=1.0,
         ),
     )
+
+
+@njit(cache=True, inline="always")
+def _brake(mass_upper, bias, gravity, v, p, out) -> None:
+    """Eq. (20) on ``u = 0`` with ``udot = 0``; the next seen step restarts the derivative."""
+    out.u[:] = 0.0
+    out.u_previous[:] = 0.0
+    out.u_dot[:] = 0.0
+    out.nu[:] = 0.0
+    out.feedforward[:] = 0.0
+    out.null_space[:] = 0.0
+    v_ref, v2 = compensation_law(
+        mass_upper, bias, gravity, p.selection, p.gain_per_mass, p.gain_constant,
+        p.gravity_weight, p.compensated, p.k_d, v, out.u, out.u_dot, p.velocity_limits,
+    )  # fmt: skip
+    out.v_ref[:] = v_ref
+    nan = np.nan
+    layout.store(
+        out.scalars,
+        layout.StepScalars(
+            has_previous=0.0, valid=0.0, storage=nan, sigma_min=nan, damped=0.0, factor=1.0,
+            v2=v2, loop_gain=nan, gain_factor=1.0, sigma_phi=0.0, upright_weight=0.0,
+            upright_angle=nan, seen=0.0,
+        ),
+    )  # fmt: skip
 
 
 class FusedControlStep:
@@ -224,13 +278,17 @@ class FusedControlStep:
         model: The controller's model of the robot.
         features: The feature set.
         xi_d: Desired features [px]. Shape (r,).
-        controller: The passivity controller (its gains).
+        controller: The kinematic controller (its gains and feedback law: the passivity law's
+            or the IBVS baseline's).
         compensator: The dynamic compensator (its loop model, rows, ``K_D``).
         objectives: The settings' built-in secondary objectives (at most one of each kind),
             computed inside the compiled step.
         user_objectives: The objectives evaluated in Python before each call: the settings'
             others (:class:`~pbvs_pin.control.support.KeepSupported`) and the user's own
             (whatever their kind).
+
+    Raises:
+        GainError: If ``objectives`` holds two of one kind, or one not built in.
     """
 
     def __init__(
@@ -265,6 +323,14 @@ class FusedControlStep:
         p.weight_inverse[:] = controller.weight_inverse
         p.lower[:], p.upper[:] = model.arm_position_limits()
         p.selection[:] = model.selection
+        kinds = [type(objective) for objective in objectives]
+        if len(set(kinds)) != len(kinds) or not all(kind in BUILT_IN for kind in kinds):
+            names = ", ".join(kind.__name__ for kind in kinds)
+            raise GainError(
+                f"FusedControlStep objectives: expected at most one of each built-in kind "
+                f"({', '.join(kind.__name__ for kind in BUILT_IN)}), got {names}; give others "
+                "as user_objectives"
+            )
         switched_on = {}
         self.user_objectives = tuple(user_objectives)
         """The user's objectives, evaluated in Python before each compiled call."""
@@ -288,7 +354,7 @@ class FusedControlStep:
         p.settings[:] = layout.Settings(
             focal=model.camera.focal_px,
             feature_scale=controller.gains.feature_scale,
-            feedback_law=controller.gains.feedback_law,
+            feedback_law=controller.feedback_law,
             derivative_time_constant=compensator.tau,
             n_base=model.n_base,
             upright=controller.gains.upright,
@@ -300,7 +366,10 @@ class FusedControlStep:
         self.state = np.zeros(layout.state_size(self.indices))
         self._bind_views()
         self._v2 = layout.slot(layout.StepScalars, "v2")
-        self._has_previous = layout.slot(layout.StepScalars, "has_previous")
+        self._law = controller
+        k = features.n_points
+        self._unseen = (np.zeros((k, 2)), np.ones(k))
+        """Points and depths handed to the compiled step when nothing is seen (not read)."""
         self._pinocchio = (
             model.model,
             model.data,
@@ -334,24 +403,11 @@ class FusedControlStep:
         self.__dict__.update(state)
         self._bind_views()
 
-    @staticmethod
-    def supports(controller: PassivityController, objectives: list[SecondaryObjective]) -> bool:
-        """Whether the fused step reproduces this controller and these built-in objectives.
-
-        The passivity law, with at most one objective of each built-in kind (a user's own
-        objectives are not among ``objectives``: the step evaluates them in Python).
-        """
-        kinds = [type(objective) for objective in objectives]
-        built_in = all(kind in BUILT_IN for kind in kinds)
-        return (
-            not isinstance(controller, ClassicIbvs) and built_in and len(set(kinds)) == len(kinds)
-        )
-
     def step(
         self,
         q: np.ndarray,
         v: np.ndarray,
-        measurement: ImageMeasurement,
+        measurement: ImageMeasurement | None,
         target_velocity: np.ndarray,
         laser: np.ndarray,
         dt: float,
@@ -364,7 +420,8 @@ class FusedControlStep:
             v: Measured actuated velocity. Shape (n,).
             measurement: The measurement to servo on; with ``predict_from``, the buffers the
                 prediction is written into (:attr:`TargetTracker.prediction
-                <pbvs_pin.control.tracking.TargetTracker.prediction>`).
+                <pbvs_pin.control.tracking.TargetTracker.prediction>`). None: nothing to
+                servo on (zero command, braked by eq. 20; the objectives' state still steps).
             target_velocity: ``phat_dot`` [m/s]. Shape (3,).
             laser: ``[d, alpha]``. Shape (2,).
             dt: Control period [s].
@@ -387,10 +444,12 @@ class FusedControlStep:
         world, age = (_NO_WORLD, NAN) if predict_from is None else predict_from
         if self.user_objectives:
             self._evaluate_user_objectives(q, placement.rotation, laser, dt)
+        seen = measurement is not None
+        points, depths = (measurement.points, measurement.depths) if seen else self._unseen
         fused_control_step(
             jacobian, placement.rotation, placement.translation, mass, bias, gravity, q, v,
-            measurement.points, measurement.depths, world, age, target_velocity, laser,
-            self._user_secondary, dt, self.params, self.indices, self.state,
+            points, depths, world, age, target_velocity, laser, self._user_secondary, seen, dt,
+            self.params, self.indices, self.state,
         )  # fmt: skip
         return self._u, self._v_ref, self._scalars[self._v2]
 
@@ -404,14 +463,16 @@ class FusedControlStep:
             self.user_objectives, state, model.n_base, model.n
         )
 
-    def restart_derivative(self) -> None:
-        """Forget the stored command: the next step does not differentiate it (after a loss)."""
-        self._scalars[self._has_previous] = 0.0
+    def output(self) -> tuple[ControlOutput, tuple[np.ndarray, np.ndarray] | None]:
+        """The last step's kinematic output and ``(J, J_o)`` [px per unit]; unseen: zeros, None.
 
-    def output(self) -> tuple[ControlOutput, tuple[np.ndarray, np.ndarray]]:
-        """The last step's diagnostics, as the modular controller reports them."""
+        As :meth:`PassivityController.step
+        <pbvs_pin.control.kinematic.PassivityController.step>` reports them.
+        """
         views = self.views
         scalars = layout.StepScalars._make(views.scalars.tolist())
+        if not scalars.seen:
+            return self._law.zero_output(self.xi_d.size), None
         output = ControlOutput(
             u=views.u.copy(), error=views.xi - self.xi_d, storage=scalars.storage,
             nu=views.nu.copy(), feedforward=views.feedforward.copy(),

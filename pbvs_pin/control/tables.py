@@ -178,7 +178,10 @@ class ControllerSection(Section):
 
     TABLE: ClassVar[str] = "controller"
     law: str = key(
-        "passivity", "passivity (eq. 34) or ibvs (classic baseline).", choices=("passivity", "ibvs")
+        "passivity",
+        "passivity (eq. 34) or ibvs (classic baseline: -lambda J# e in place of the feedback, "
+        "the rest as the passivity law's; pbvs_pin.control.ibvs).",
+        choices=("passivity", "ibvs"),
     )
     k: tuple[float, ...] = key(
         (0.15,),

@@ -207,6 +207,9 @@ class TargetTracker:
     def current(self, t: float, q: np.ndarray, velocity: np.ndarray) -> ImageMeasurement | None:
         """What the controller servoes on at ``t``: the measurement, its prediction, or None.
 
+        The NumPy reference of what :meth:`choose` and the compiled step do together (the
+        tests' modular reference calls it; the controller does not).
+
         Args:
             t: Time [s].
             q: Encoder configuration now. Shape (nq,).
