@@ -154,7 +154,7 @@ def closed_loop_real_time_factor(
     (loading the robot, maximising manipulability) is not counted.
 
     Returns:
-        The factor, and the fraction of logged steps with a valid command (the fused step).
+        The factor, and the fraction of logged steps with a valid command.
     """
     scenario = load_scenario("experiment1").with_values(
         **{"controller.rate": 1000.0, "duration": duration, **values}
@@ -242,7 +242,7 @@ def main() -> None:
     factor, _ = closed_loop_real_time_factor()
     print(f"closed loop, 1 kHz controller, pioneer_cyton: {factor:.1f}x real time")
     print("\ncost per simulated second against the arm's joints (Panda, camera on link 3 ... 7):")
-    print(f"{'arm joints':>10}{'n':>4}{'cost [ms per s]':>17}{'real time':>11}{'fused':>7}")
+    print(f"{'arm joints':>10}{'n':>4}{'cost [ms per s]':>17}{'real time':>11}{'valid':>7}")
     for joints in range(3, 8):
         values = panda_truncated(joints)
         n = build(load_scenario("experiment1").with_values(**values)).robot.n

@@ -291,7 +291,6 @@ class Controller:
         self._odometry = OdometryJumps(model.model, (2 * limits[0], 2 * limits[model.n_base - 1]))
         self._newest_capture = -np.inf
         self._latency_seen = float("nan")
-        self._no_error = np.full(self.features.size, np.nan)
 
     def step(
         self,
@@ -509,8 +508,7 @@ class Controller:
             return
         gains = replace(self.law.gains, loop_gain_margin=margin)
         self.law.gains, self.law.safety = gains, self.law.safety._replace(loop_gain_margin=margin)
-        if self.fused is not None:
-            self.fused.settings[self._margin_slot] = margin
+        self.fused.settings[self._margin_slot] = margin
 
     def _command(
         self, t: float, q: np.ndarray, v: np.ndarray, velocity: np.ndarray, dt: float
@@ -526,7 +524,7 @@ class Controller:
             predict_from = (tracker.world, t - tracker.capture_time)
         u, v_ref, v2 = fused.step(q, v, measurement, velocity, self.laser, dt, predict_from)
         if measurement is None:
-            return u, v_ref, v2, self._no_error, False
+            return u, v_ref, v2, np.full(self.features.size, np.nan), False
         return u, v_ref, v2, fused.views.xi - self.xi_d, True
 
     def _warm_up(self) -> None:

@@ -113,7 +113,7 @@ def test_a_command_cut_by_the_limits_is_saturated_whoever_cut_it():
 
 
 def test_the_baseline_runs_saturation_is_in_its_saturated_channel(ibvs_experiment2):
-    """Experiment 2's IBVS run puts v_ref on a limit (50 samples when measured) while its u
+    """Experiment 2's IBVS run puts v_ref on a limit (28 samples when measured) while its u
     stays inside them: every such sample is saturated, and the summary's fraction is not 0."""
     from pbvs_pin.sim.metrics import summarize
 

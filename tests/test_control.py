@@ -429,6 +429,27 @@ def test_classic_ibvs_law():
     np.testing.assert_allclose(jacobian_px @ out.null_space, 0.0, atol=1e-9)
 
 
+def test_classic_ibvs_differs_from_the_pseudoinverse_feedback_only_by_its_constant_gain():
+    """With the upright row acting, the IBVS baseline and the passivity law's pseudo-inverse
+    feedback at ``k_i = lambda`` share the null space (kept upright) and the feed-forward; their
+    commands differ by ``J# (lambda e - K_c e)`` alone, ``K_c e = lambda e / (1 + |e|)``."""
+    rng = np.random.default_rng(21)
+    jacobian, object_jacobian, velocity, secondary = _random_problem(rng, 5)
+    gains = replace(_gains(5, rng, feedback="pseudoinverse"), k=(0.5,))
+    error = np.array([0.4, -0.2, 0.1])  # controller units
+    upright = np.array([0.3, 1.0, -0.5, 0.2, 0.0, 0.4])
+    arguments = (error * SCALE, jacobian * SCALE, object_jacobian * SCALE, velocity, secondary)
+    ibvs = ClassicIbvs(0.5, NO_LIMITS, gains).step(*arguments, upright=upright)
+    shaped = PassivityController(gains, NO_LIMITS).step(*arguments, upright=upright)
+    assert ibvs.upright_weight > 0.0 and not ibvs.gain_limited and not shaped.gain_limited
+    np.testing.assert_allclose(ibvs.null_space, shaped.null_space, atol=1e-12)
+    np.testing.assert_allclose(ibvs.feedforward, shaped.feedforward, atol=1e-12)
+    pinv = PassivityController(gains, NO_LIMITS).pseudo_inverse(jacobian)[0]
+    difference = pinv @ (0.5 * error - 0.5 * error / (1.0 + np.abs(error)))
+    np.testing.assert_allclose(ibvs.u - shaped.u, -difference, rtol=1e-9, atol=1e-12)
+    assert np.linalg.norm(difference) > 1e-3
+
+
 # ---------------------------------------------------------------- gains and shapes
 @pytest.mark.parametrize(
     "field, value",

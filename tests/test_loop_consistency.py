@@ -93,7 +93,9 @@ def test_fused_step_equals_the_modular_blocks_on_a_holonomic_base_near_dead_ahea
 
 def test_the_ibvs_baseline_runs_in_the_compiled_step_as_its_modular_reference():
     """``controller.law = "ibvs"``: the compiled step's feedback ``lambda J# e`` with the same
-    objectives, upright row and stops as the reference ``ClassicIbvs.step``."""
+    objectives, upright row and stops as the reference (``ClassicIbvs``, that is
+    ``PassivityController.step`` with the IBVS code; ``test_control.py`` checks the law itself
+    by hand)."""
     scenario = load_scenario("experiment2").with_values(
         **{**NO_LATENCY, "controller.law": "ibvs", "controller.ibvs_gain": 0.4}
     )
@@ -136,6 +138,8 @@ def test_a_target_loss_next_to_an_obstacle_keeps_one_state():
         np.testing.assert_allclose(impedance, avoidance.velocity, rtol=1e-12, atol=1e-15)
         if lost:
             np.testing.assert_array_equal(commands[1].u, 0.0)
+            assert np.isnan(commands[1].error).all()
+            commands[1].error[:] = 0.0  # a caller's write reaches no later command
             assert fused.diagnostics()[1] is None and not fused.diagnostics()[0].valid
             if impedance_at_loss is None:
                 impedance_at_loss = impedance.copy()

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pbvs_pin.control.balanced import balanced_feedback, balanced_gain, joint_room
+from pbvs_pin.control.kinematic import IBVS, PSEUDOINVERSE, TRANSPOSE
 
 if TYPE_CHECKING:
     from pbvs_pin.control.kinematic import PassivityController
@@ -66,8 +67,9 @@ def true_passivity_terms(
         \qquad \text{input} = v + J^\# J_o \dot p
 
     with the true ``v`` and ``pdot`` and the controller's weighted pseudo-inverse of the true
-    ``J``. NaN where the target is behind the camera. Pops ``object_jacobian_true`` from
-    ``derived`` (it is not logged; ``jacobian_true`` goes once :func:`feedback_terms` used it).
+    ``J`` (``K_c(e) e`` is ``k e`` for the IBVS baseline, as in its logged ``nu``). NaN where
+    the target is behind the camera. Pops ``object_jacobian_true`` from ``derived`` (it is not
+    logged; ``jacobian_true`` goes once :func:`feedback_terms` used it).
 
     Args:
         setup: The run's blocks.
@@ -80,13 +82,26 @@ def true_passivity_terms(
     k = setup.law.feature_gains(setup.features.size)
     error = (derived["xi_true"] - setup.xi_d) / scale
     magnitude = np.abs(error)
-    nu = np.einsum("sij,si->sj", jacobian, k * error / (1.0 + magnitude))
+    nu = np.einsum("sij,si->sj", jacobian, shaped_error(setup.law, error))
     storage = np.sum(k * (magnitude - np.log1p(magnitude)), axis=1)
     inputs = np.full_like(v, np.nan, dtype=float)
     for i in np.flatnonzero(np.isfinite(jacobian).all(axis=(1, 2))):
         pinv = setup.law.pseudo_inverse(jacobian[i])[0]
         inputs[i] = v[i] + pinv @ (object_jacobian[i] @ derived["target_velocity"][i])
     return {"nu_true": nu, "storage_true": storage, "passivity_input_true": inputs}
+
+
+def shaped_error(law: PassivityController, error: np.ndarray) -> np.ndarray:
+    """``K_c(e) e`` of eq. (10) (``k e`` for the IBVS baseline's constant gain), per sample.
+
+    Args:
+        law: The run's kinematic law.
+        error: ``xi - xi_d`` in controller units. Shape (..., r).
+    """
+    k = law.feature_gains(error.shape[-1])
+    if law.feedback_law == IBVS:
+        return k * error
+    return k / (1.0 + np.abs(error)) * error
 
 
 def feedback_terms(
@@ -105,7 +120,7 @@ def feedback_terms(
         arm: Arm joint positions [q]. Shape (N, n_arm).
     """
     law = setup.law
-    if law.gains.feedback == "transpose":
+    if law.feedback_law == TRANSPOSE:
         return nu
     scale = law.gains.feature_scale
     model = setup.model
@@ -126,9 +141,9 @@ def law_feedback(
 ) -> np.ndarray:
     """The law's feedback ``nu_fb`` (``u = -nu_fb - J# J_o phat_dot + ...``) at one sample.
 
-    ``nu`` for the paper's law, ``J# K_c e`` or the balanced feedback
-    (:func:`pbvs_pin.control.balanced.balanced_feedback`); before the loop-gain net and the
-    saturation.
+    ``nu`` for the paper's law, ``J# K_c e``, the balanced feedback
+    (:func:`pbvs_pin.control.balanced.balanced_feedback`) or the IBVS baseline's
+    ``lambda J# e``; before the loop-gain net and the saturation.
 
     Args:
         law: The run's kinematic law.
@@ -140,10 +155,10 @@ def law_feedback(
         ``nu_fb`` [u]. Shape (n,).
     """
     k = law.feature_gains(error.shape[0])
-    kc_error = k / (1.0 + np.abs(error)) * error
-    if law.gains.feedback == "transpose":
+    kc_error = shaped_error(law, error)
+    if law.feedback_law == TRANSPOSE:
         return jacobian.T @ kc_error
-    if law.gains.feedback == "pseudoinverse":
+    if law.feedback_law in (PSEUDOINVERSE, IBVS):
         return law.pseudo_inverse(jacobian)[0] @ kc_error
     gain = balanced_gain(law.safety.loop_gain_margin, law.safety.camera_period, k.max())
     jacobian = np.ascontiguousarray(jacobian, dtype=float)

@@ -130,8 +130,9 @@ def baseline_section(pairs: list[tuple[str, dict, dict]], gain: float) -> str:
         "",
         f"## Passivity law against the classic IBVS baseline (lambda = {gain:.3g} /s)",
         "",
-        "u = -lambda J# e - J# J_o phat_dot + (I - J# J) k1 tanh(k2 Lambda): the same null-space "
-        "objectives, saturation and dynamics as the passivity law. Gain rule: " + GAIN_RULE + ".",
+        "u = -lambda J# e - J# J_o phat_dot + (I - J# J) k1 tanh(k2 Lambda), in the same compiled "
+        "step as the passivity law: the same null-space objectives, upright row, joint stops, "
+        "loop-gain net, saturation and dynamics. Gain rule: " + GAIN_RULE + ".",
         "",
         f"| experiment | law | time to max abs error < {SETTLED_PX:g} px for good [s] | "
         f"RMS error after {TRANSIENT:g} s [px] | min clearance [m] | command limited "
