@@ -151,11 +151,11 @@ class KeepSupported(SecondaryObjective):
         out = np.zeros(n)
         if state.q is None:
             return out
-        slack, gradient = self.rows.slack(at_origin(state.q), self._data)
-        worst = int(np.argmin(slack))
+        slack, centre_jacobian = self.rows.rows(at_origin(state.q), self._data)
+        worst = int(slack.argmin())
         if slack[worst] >= 0.0:
             return out
-        g = gradient[worst]
+        g = self.rows.gradient(centre_jacobian)[worst]  # only here: most steps stand clear
         out[n_base:] = self.gain * (-slack[worst]) * g / max(float(g @ g), GRADIENT_FLOOR)
         if (
             self.heading_gain > 0.0

@@ -68,13 +68,23 @@ class SupportRows:
                 Shape (nq,).
             data: Scratch ``pin.Data`` of the robot's model; None: the robot's own.
         """
+        rows, centre_jacobian = self.rows(q, data)
+        return rows, self.gradient(centre_jacobian)
+
+    def rows(self, q: np.ndarray, data: pin.Data | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Rows ``s`` [m], shape (m,), and the centre of mass's Jacobian, shape (3, nv).
+
+        :meth:`slack` without the gradient, which :meth:`gradient` gives from the Jacobian
+        when it is needed (arguments as :meth:`slack`'s).
+        """
         robot = self.robot
         data = robot.data if data is None else data
         jacobian = pin.jacobianCenterOfMass(robot.model, data, q)
-        centre = data.com[0][:2]
-        return self.normals @ centre - self.offsets, self.normals @ (
-            jacobian[:2] @ self.arm_columns
-        )
+        return self.normals @ data.com[0][:2] - self.offsets, jacobian
+
+    def gradient(self, centre_jacobian: np.ndarray) -> np.ndarray:
+        """``ds / d theta`` [m/rad or m/m] from the centre of mass's Jacobian. Shape (m, n_arm)."""
+        return self.normals @ (centre_jacobian[:2] @ self.arm_columns)
 
 
 def at_origin(q: np.ndarray) -> np.ndarray:
