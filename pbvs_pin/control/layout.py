@@ -204,6 +204,8 @@ class StepScalars(NamedTuple):
 SIZES = len(Sizes._fields)
 SETTINGS = len(Settings._fields)
 STEP_SCALARS = len(StepScalars._fields)
+V2_SLOT = StepScalars._fields.index("v2")
+"""Position of ``v2`` in ``State.scalars`` (written once eq. (20) has run)."""
 
 
 def pack_indices(

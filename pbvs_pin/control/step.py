@@ -168,19 +168,29 @@ def fused_control_step(
         secondary[j] += user_secondary[j]
     if seen:
         _servo(
-            frame_jacobian, rotation, translation, mass_upper, bias, gravity, v, points,
-            depths, world, age, target_velocity, secondary, theta, dt, p, setting, index, out,
+            frame_jacobian, rotation, translation, points, depths, world, age, target_velocity,
+            secondary, theta, dt, p, setting, index, out,
         )  # fmt: skip
     else:  # nothing to servo on: eq. (20) brakes a zero command; its derivative restarts
-        _brake(mass_upper, bias, gravity, v, p, out)
+        _brake(out)
+    # eq. (20) on the command and its derivative
+    v_ref, v2 = compensation_law(
+        mass_upper, bias, gravity, p.selection, p.gain_per_mass, p.gain_constant,
+        p.gravity_weight, p.compensated, p.k_d, v, out.u, out.u_dot, p.velocity_limits,
+    )  # fmt: skip
+    out.v_ref[:] = v_ref
+    out.scalars[layout.V2_SLOT] = v2
 
 
 @njit(cache=True, inline="always")
 def _servo(
-    frame_jacobian, rotation, translation, mass_upper, bias, gravity, v, points, depths, world,
-    age, target_velocity, secondary, theta, dt, p, setting, index, out,
+    frame_jacobian, rotation, translation, points, depths, world, age, target_velocity,
+    secondary, theta, dt, p, setting, index, out,
 ) -> None:  # fmt: skip
-    """Eqs. (3), (34) and (20) on what is seen (arguments as :func:`fused_control_step`'s)."""
+    """Eqs. (3) and (34) on what is seen, and the command's filtered derivative for eq. (20).
+
+    Arguments as :func:`fused_control_step`'s; ``u`` and ``udot`` go into ``out``.
+    """
     n = secondary.shape[0]
     if not np.isnan(age):  # the prediction: the frame's points moved by phat_dot, eq. (2) at q
         image, image_depths = predict_points(
@@ -212,17 +222,12 @@ def _servo(
         upright, safety, room_up, room_down,
     )  # fmt: skip
     u = law.u
-    # eq. (20), with the low-pass filtered derivative of the command
+    # the low-pass filtered derivative of the command, for eq. (20)
     filter_derivative(
         u, out.u_previous, out.u_dot, layout.step_scalars(out.scalars).has_previous > 0.0, dt,
         setting.derivative_time_constant,
     )  # fmt: skip
-    v_ref, v2 = compensation_law(
-        mass_upper, bias, gravity, p.selection, p.gain_per_mass, p.gain_constant,
-        p.gravity_weight, p.compensated, p.k_d, v, u, out.u_dot, p.velocity_limits,
-    )  # fmt: skip
     out.u[:] = u
-    out.v_ref[:] = v_ref
     out.nu[:] = law.nu
     out.feedforward[:] = law.feedforward
     out.null_space[:] = law.null_space
@@ -235,7 +240,7 @@ def _servo(
             sigma_min=law.sigma_min,
             damped=1.0 if law.damped else 0.0,
             factor=law.factor,
-            v2=v2,
+            v2=np.nan,  # eq. (20)'s, written after it
             loop_gain=law.gains.loop_gain,
             gain_factor=law.gains.gain_factor,
             sigma_phi=law.gains.sigma_phi,
@@ -247,25 +252,20 @@ def _servo(
 
 
 @njit(cache=True, inline="always")
-def _brake(mass_upper, bias, gravity, v, p, out) -> None:
-    """Eq. (20) on ``u = 0`` with ``udot = 0``; the next seen step restarts the derivative."""
+def _brake(out) -> None:
+    """``u = 0`` with ``udot = 0`` for eq. (20); the next seen step restarts the derivative."""
     out.u[:] = 0.0
     out.u_previous[:] = 0.0
     out.u_dot[:] = 0.0
     out.nu[:] = 0.0
     out.feedforward[:] = 0.0
     out.null_space[:] = 0.0
-    v_ref, v2 = compensation_law(
-        mass_upper, bias, gravity, p.selection, p.gain_per_mass, p.gain_constant,
-        p.gravity_weight, p.compensated, p.k_d, v, out.u, out.u_dot, p.velocity_limits,
-    )  # fmt: skip
-    out.v_ref[:] = v_ref
     nan = np.nan
     layout.store(
         out.scalars,
         layout.StepScalars(
             has_previous=0.0, valid=0.0, storage=nan, sigma_min=nan, damped=0.0, factor=1.0,
-            v2=v2, loop_gain=nan, gain_factor=1.0, sigma_phi=0.0, upright_weight=0.0,
+            v2=nan, loop_gain=nan, gain_factor=1.0, sigma_phi=0.0, upright_weight=0.0,
             upright_angle=nan, seen=0.0,
         ),
     )  # fmt: skip
