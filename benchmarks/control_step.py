@@ -4,21 +4,21 @@ The control step timed is the compiled step the public controller makes every st
 simulation loop runs it: :class:`FusedControlStep` (secondary objectives, eq. 3, the
 prediction, eq. 34 and eq. 20 in one compiled call after its Pinocchio calls).
 
-Run: ``python benchmarks/control_step.py``. Prints, per robot, the median time of one full
-control step (kinematic controller, eq. 34, plus dynamic compensation, eq. 20) and of the
-Pinocchio calls that step makes (joint Jacobians, camera frame placement and Jacobian, CRBA,
-nonlinear effects, gravity), both measured in this run, and their ratio; where the step's time
-goes (Pinocchio, Python glue, passing the 20 arguments to compiled code, the compiled
-arithmetic) and the ratio it would have with no arithmetic at all (its floor); then the
-real-time factor of a closed-loop simulation with a 1 kHz controller on the reference robot, its
-cost per simulated second against the number of arm joints (a Panda on the reference platform
-with the camera on its link 3 ... 7: 3 ... 7 arm joints), and where the loop's time goes on the
-reference robot: the Pinocchio calls per simulated millisecond that no speed-up removes (the
-floor), the rest of the compiled step, the rest of the public controller's step (its checks,
-encoder history, tracker and command), the plant step, the sensors' reading
-(:class:`~pbvs_pin.sim.sensing.Sensing`), and everything else in the loop. Medians over
-repeats: the machine is shared. ``benchmarks/compiled_floor.py`` measures what the step and
-the loop would cost with the Pinocchio calls made from compiled code.
+Run: ``python benchmarks/control_step.py``. Prints, per robot, the median time of one full control
+step (kinematic controller, eq. 34, plus dynamic compensation, eq. 20) and of the Pinocchio calls
+that step makes (joint Jacobians, camera frame placement and Jacobian, CRBA, nonlinear effects,
+gravity, and the centre of mass's Jacobian when the support objective is on), both measured in this
+run, and their ratio; where the step's time goes (Pinocchio, Python glue, passing the 22 arguments
+to compiled code, the compiled arithmetic) and the ratio it would have with no arithmetic at all
+(its floor); then the real-time factor of a closed-loop simulation with a 1 kHz controller on the
+reference robot, its cost per simulated second against the number of arm joints (a Panda on the
+reference platform with the camera on its link 3 ... 7: 3 ... 7 arm joints), and where the loop's
+time goes on the reference robot: the Pinocchio calls per simulated millisecond that no speed-up
+removes (the floor), the rest of the compiled step, the rest of the public controller's step (its
+checks, encoder history, tracker and command), the plant step, the sensors' reading
+(:class:`~pbvs_pin.sim.sensing.Sensing`), and everything else in the loop. Medians over repeats: the
+machine is shared. ``benchmarks/compiled_floor.py`` measures what the step and the loop would cost
+with the Pinocchio calls made from compiled code.
 """
 
 from __future__ import annotations
@@ -30,8 +30,7 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from pbvs_pin.control.secondary import split_objectives
-from pbvs_pin.control.step import FusedControlStep, fused_control_step
+from pbvs_pin.control.step import FusedControlStep, fused_control_step, split_objectives
 from pbvs_pin.perception.camera_frame import CameraFrame
 from pbvs_pin.perception.features import ImageMeasurement
 from pbvs_pin.plant.pinocchio_plant import Plant
@@ -65,20 +64,36 @@ def _interleaved(*functions, repeats: int = REPEATS) -> tuple[float, ...]:
 
 
 @njit
-def _no_op(a, b, c, d, e, f, g, h, i, j, k, m, n, o, p, seen, dt, params, indices, state) -> None:
-    """A compiled call that does nothing with the fused step's 20 arguments."""
+def _no_op(
+    a, b, c, d, e, f, g, h, i, j, k, m, n, o, centre, centre_jacobian, p, seen, dt, params,
+    indices, state,
+) -> None:  # fmt: skip
+    """A compiled call that does nothing with the fused step's 22 arguments."""
 
 
 def control_step_calls(
-    model: pin.Model, data: pin.Data, frame: int, q: np.ndarray, v_pin: np.ndarray
+    model: pin.Model,
+    data: pin.Data,
+    frame: int,
+    q: np.ndarray,
+    v_pin: np.ndarray,
+    support: tuple[pin.Data, np.ndarray] | None = None,
 ) -> None:
-    """The Pinocchio calls of :meth:`FusedControlStep.step`, made from Python."""
+    """The Pinocchio calls of :meth:`FusedControlStep.step`, made from Python.
+
+    ``support``: :attr:`FusedControlStep.support` (the centre of mass's Jacobian, platform at
+    the origin); None: the support objective is off.
+    """
     pin.computeJointJacobians(model, data, q)
     pin.updateFramePlacement(model, data, frame)
     pin.getFrameJacobian(model, data, frame, pin.LOCAL)
     pin.crba(model, data, q)
     pin.nonLinearEffects(model, data, q, v_pin)
     pin.computeGeneralizedGravity(model, data, q)
+    if support is not None:
+        support_data, at_origin_q = support
+        at_origin_q[4:] = q[4:]
+        pin.jacobianCenterOfMass(model, support_data, at_origin_q)
 
 
 def plant_step_calls(
@@ -97,7 +112,7 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, flo
     Returns the step, its Pinocchio calls, their median ratio, the compiled call alone and a
     compiled call that does nothing with the same arguments. The difference step - Pinocchio
     calls - compiled call is the Python glue; compiled call - no-op is the compiled arithmetic;
-    the no-op is the price of calling compiled code with the step's 20 arguments.
+    the no-op is the price of calling compiled code with the step's 22 arguments.
     """
     scenario = load_scenario("experiment1").with_values(**{"robot.name": robot_name})
     setup = build(scenario)
@@ -122,15 +137,15 @@ def control_step_ratio(robot_name: str) -> tuple[float, float, float, float, flo
     v_pin = setup.model.selection @ v
 
     def pinocchio_calls() -> None:
-        control_step_calls(model, data, frame, q, v_pin)
+        control_step_calls(model, data, frame, q, v_pin, fused.support)
 
     step()
     arguments = (
         pin.getFrameJacobian(model, data, frame, pin.LOCAL).copy(),
         data.oMf[frame].rotation.copy(), data.oMf[frame].translation.copy(), data.M.copy(),
         data.nle.copy(), data.g.copy(), q, v, measurement.points, measurement.depths,
-        np.zeros((0, 3)), float("nan"), target_velocity, laser, np.zeros(fused.model.n), True, dt,
-        fused.params, fused.indices, fused.state,
+        np.zeros((0, 3)), float("nan"), target_velocity, laser, *fused.centre_of_mass(q),
+        np.zeros(fused.model.n), True, dt, fused.params, fused.indices, fused.state,
     )  # fmt: skip
 
     def compiled() -> None:

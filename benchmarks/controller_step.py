@@ -1,16 +1,16 @@
 """Benchmark: the public controller's step, as a robot's 1 kHz loop calls it.
 
-Run: ``python benchmarks/controller_step.py [--previous PATH]``. For the reference robot and
-the xArm7 on the reference platform it times :meth:`pbvs_pin.Controller.step` call by call
-over 10 000 calls of a 1 kHz loop (the configuration moving every call, a frame every 33 ms
-arriving one frame period after its capture, so that every step predicts), and the Pinocchio
-calls one step makes (joint Jacobians, camera placement and Jacobian, CRBA, nonlinear
-effects, gravity), timed the same way in the same run; it prints the medians, the 99th
-percentiles and the median ratio. Then the median of the controller's compiled step alone
-(:meth:`FusedControlStep.step`: those Pinocchio calls and one compiled call predicting the
-frame, without the input checks, the encoder history, the tracker or the command object): the
-floor of this structure, Pinocchio called from Python. Last, the time a freshly built
-controller took to build (compiling or loading its kernels) and its first step.
+Run: ``python benchmarks/controller_step.py [--previous PATH]``. For the reference robot and the
+xArm7 on the reference platform it times :meth:`pbvs_pin.Controller.step` call by call over 10 000
+calls of a 1 kHz loop (the configuration moving every call, a frame every 33 ms arriving one frame
+period after its capture, so that every step predicts), and the Pinocchio calls one step makes
+(joint Jacobians, camera placement and Jacobian, CRBA, nonlinear effects, gravity; the centre of
+mass's Jacobian with the support objective on), timed the same way in the same run; it prints the
+medians, the 99th percentiles and the median ratio. Then the median of the controller's compiled
+step alone (:meth:`FusedControlStep.step`: those Pinocchio calls and one compiled call predicting
+the frame, without the input checks, the encoder history, the tracker or the command object): the
+floor of this structure, Pinocchio called from Python. Last, the time a freshly built controller
+took to build (compiling or loading its kernels) and its first step.
 
 With ``--previous PATH`` (a checkout of another version of the package), it also runs the
 closed loop (Experiment 1 on the reference robot, 10 s at a 1 kHz controller, setup not
@@ -99,8 +99,10 @@ def step_and_calls(robot_name: str) -> dict[str, float]:
     )[WARM_UP:]
     pin_model, data, frame = model.model, model.data, model.camera_frame_id
     v_pin = model.selection @ v
+    support = controller.fused.support
     calls = per_call(
-        lambda k: control_step_calls(pin_model, data, frame, configurations[k], v_pin), total
+        lambda k: control_step_calls(pin_model, data, frame, configurations[k], v_pin, support),
+        total,
     )[WARM_UP:]
     fused, tracker, laser = controller.fused, controller.tracker, controller.laser
     velocity, measurement = tracker.estimator.velocity, tracker.measurement

@@ -62,11 +62,7 @@ from pbvs_pin.control.encoders import TIME_TOLERANCE, EncoderHistory
 from pbvs_pin.control.gating import FaultCounts, InnovationGate
 from pbvs_pin.control.kinematic import ControlOutput
 from pbvs_pin.control.odometry import OdometryJumps
-from pbvs_pin.control.secondary import (
-    SecondaryObjective,
-    split_objectives,
-    user_objectives,
-)
+from pbvs_pin.control.secondary import SecondaryObjective, user_objectives
 from pbvs_pin.control.settings import (
     ControllerSettings,
     compensator,
@@ -75,7 +71,7 @@ from pbvs_pin.control.settings import (
     posture_target,
     secondary_objectives,
 )
-from pbvs_pin.control.step import FusedControlStep
+from pbvs_pin.control.step import FusedControlStep, split_objectives
 from pbvs_pin.control.tracking import TargetTracker
 from pbvs_pin.exceptions import ControlInputError, NonFiniteValue, ShapeError
 from pbvs_pin.model.camera import MIN_DEPTH

@@ -188,3 +188,18 @@ def step_modular_reference(control) -> None:
     control._command = command
     control.diagnostics = lambda: last["output"]
     control.reference = True
+
+
+def past_the_margin(robot, margin: float, past: float) -> np.ndarray:
+    """The robot's home with its shoulder lift (second arm joint) turned, 0.005 rad at a time,
+    until the centre of mass is ``past`` [m] past the support's ``margin`` [m]."""
+    from pbvs_pin.model.support import SupportRows, at_origin
+
+    q = robot.home()
+    joint = robot.arm_q_indices[1]
+    rows = SupportRows(robot, robot.support, margin)
+    for _ in range(400):
+        if rows.slack(at_origin(q))[0].min() < -past:
+            return q
+        q[joint] += 0.005 * np.sign(robot.home()[joint] or -1.0)
+    raise AssertionError("no posture past the margin")

@@ -5,7 +5,7 @@ import pytest
 
 from pbvs_pin.control import layout
 
-SIZE = layout.Sizes(n=5, r=3, nv=6, n_arm=3)
+SIZE = layout.Sizes(n=5, r=3, nv=6, n_arm=3, n_support=4)
 
 
 @pytest.fixture
@@ -30,6 +30,8 @@ def test_parameter_fields_tile_the_float_buffer(indices):
     assert views.weight_inverse.shape == (5, 5)
     assert views.selection.shape == (6, 5)
     assert views.posture_target.shape == (3,)
+    assert views.support_normals.shape == (4, 2)
+    assert views.support_offsets.shape == (4,)
 
 
 def test_state_fields_tile_the_state_buffer(indices):
@@ -41,7 +43,7 @@ def test_state_fields_tile_the_state_buffer(indices):
 
 
 def test_index_fields_follow_the_sizes(indices):
-    assert tuple(layout.sizes(indices)) == (5, 3, 6, 3)
+    assert tuple(layout.sizes(indices)) == (5, 3, 6, 3, 4)
     views = layout.index_views(indices)
     np.testing.assert_array_equal(views.rows, [0, 1, 3])
     np.testing.assert_array_equal(views.arm_q_indices, [3, 4, 6])
@@ -64,6 +66,8 @@ def test_settings_written_by_name_are_read_by_name(indices):
         upright_rate=0.2,
         camera_period=0.04,
         loop_gain_margin=1.5,
+        support_gain=10.0,
+        support_d0=0.8,
     )
     read = layout.settings(block)
     assert read.focal == 600.0
@@ -75,6 +79,7 @@ def test_settings_written_by_name_are_read_by_name(indices):
     assert read.obstacle is False
     assert read.upright is True
     assert (read.upright_rate, read.camera_period, read.loop_gain_margin) == (0.2, 0.04, 1.5)
+    assert (read.support_gain, read.support_turn_gain, read.support_d0) == (10.0, 0.0, 0.8)
 
 
 def test_step_scalars_stored_by_name_are_read_by_name(indices):

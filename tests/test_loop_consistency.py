@@ -4,11 +4,15 @@ with the modular reference (seen, lost beside an obstacle, and the IBVS baseline
 import numpy as np
 import pytest
 from conftest import REPO_ROOT
-from simhelpers import controller_with_first_frame
+from simhelpers import controller_with_first_frame, past_the_margin
 
 from pbvs_pin import CameraFrame
-from pbvs_pin.control.secondary import ObstacleAvoidance
+from pbvs_pin.control import layout
+from pbvs_pin.control.secondary import ObstacleAvoidance, secondary_input
+from pbvs_pin.control.support import KeepSupported
+from pbvs_pin.model.support import COM_MARGIN, SupportRows, at_origin
 from pbvs_pin.sim.scenario import load_scenario
+from pbvs_pin.sim.setup import build
 from pbvs_pin.study.experiments import with_robot
 
 NO_LATENCY = {"camera.latency": 0.0, "estimator.predict": False}
@@ -35,13 +39,19 @@ def test_loop_jacobians_match_the_feature_set_at_the_current_configuration():
     np.testing.assert_allclose(object_jacobian, expected_jo, rtol=1e-12, atol=1e-9)
 
 
-def _paths_agree(scenario, laser, predict):
-    """Step the modular classes and the compiled step side by side; both give the same."""
+def _paths_agree(scenario, laser, predict, start=None, prepare=None):
+    """Step the modular classes and the compiled step side by side; both give the same.
+
+    ``start``: the configuration the steps wander from (None: the plant's); ``prepare(modular,
+    fused)`` is called before the steps.
+    """
     modular_setup, modular = controller_with_first_frame(scenario, modular=True)
     _, fused = controller_with_first_frame(scenario)
     assert getattr(modular, "reference", False) and not hasattr(fused, "reference")
+    if prepare is not None:
+        prepare(modular, fused)
     rng = np.random.default_rng(3)
-    q = modular_setup.plant.q
+    q = modular_setup.plant.q if start is None else start
     for step in range(1, 4):  # several steps: the command derivative and impedance have memory
         q = modular.model.integrate(q, rng.uniform(-0.05, 0.05, modular.model.n), 1.0)
         v = rng.uniform(-0.2, 0.2, modular.model.n)
@@ -89,6 +99,40 @@ def test_fused_step_equals_the_modular_blocks_on_a_holonomic_base_near_dead_ahea
     avoidance = next(o for o in modular.objectives if isinstance(o, ObstacleAvoidance))
     ramp, paper = avoidance.force(0.6, 0.05, holonomic=True), avoidance.force(0.6, 0.05)
     assert ramp[1] == pytest.approx(0.5 * paper[1])
+
+
+def test_the_support_objective_in_the_compiled_step_equals_its_reference_at_the_edge():
+    """The UR5 on the Pioneer reaching 0.06 m past the support's margin, with a posture target
+    whose way back runs over the edge and an obstacle between d0 and 1.5 d0: the support
+    objective's push and its platform turn (both acting, checked on the reference) come out of
+    the compiled step as out of ``KeepSupported.contribution`` with its own ``pin.Data``."""
+    scenario = load_scenario("experiment2").with_values(
+        **{**NO_LATENCY, "robot.name": "pioneer_ur5"}
+    )
+    robot = build(scenario).model
+    start = past_the_margin(robot, COM_MARGIN, 0.06)
+    rows = SupportRows(robot, robot.support, COM_MARGIN)
+    slack, gradient = rows.slack(at_origin(start))
+    over = gradient[slack.argmin()]
+    target = robot.arm_positions(start) - 0.3 * over / np.linalg.norm(over)  # (19) pulls over
+    acted = []
+
+    def prepare(modular, fused) -> None:
+        support = next(o for o in modular.objectives if isinstance(o, KeepSupported))
+        assert support.turns(robot.n_base)
+        support.target = target
+        layout.parameter_views(fused.fused.params, fused.fused.indices).support_target[:] = target
+        acted.append(support)
+
+    d0 = next(o for o in build(scenario).control.objectives if isinstance(o, KeepSupported)).d0
+    assert d0 > 0.0
+    laser = (1.25 * d0, 0.4)
+    modular = _paths_agree(scenario, laser, False, start=start, prepare=prepare)
+    state = secondary_input(robot, start, np.array(laser), 1e-3, robot.camera_pose(start).rotation)
+    push = acted[0].contribution(state, robot.n_base, robot.n)
+    assert np.linalg.norm(push[robot.n_base :]) > 0.1  # the arm is pushed back
+    assert abs(push[robot.n_base - 1]) > 1e-3  # and the platform turns
+    assert modular.model.n_base == 2
 
 
 def test_the_ibvs_baseline_runs_in_the_compiled_step_as_its_modular_reference():

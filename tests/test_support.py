@@ -10,6 +10,7 @@ shortfall. The closed loop (the UR5 kept standing on MuJoCo) is in
 import numpy as np
 import pinocchio as pin
 import pytest
+from simhelpers import past_the_margin
 
 from pbvs_pin import load_robot
 from pbvs_pin.control.secondary import SecondaryInput
@@ -38,16 +39,9 @@ def _rows_by_hand(robot, q, margin) -> np.ndarray:
 
 
 def _reaching(robot, margin: float = COM_MARGIN, past: float = 0.02) -> np.ndarray:
-    """The home with the shoulder lift turned forward until the centre of mass is past the
-    margin by ``past`` [m] (with the default margin, inside the support)."""
-    q = robot.home()
-    joint = robot.arm_q_indices[1]
-    rows = SupportRows(robot, robot.support, margin)
-    for _ in range(400):
-        if rows.slack(at_origin(q))[0].min() < -past:
-            return q
-        q[joint] += 0.005 * np.sign(robot.home()[joint] or -1.0)
-    raise AssertionError("no posture past the margin")
+    """The home with the shoulder lift turned until the centre of mass is ``past`` [m] past
+    ``margin`` (with the default margin, inside the support)."""
+    return past_the_margin(robot, margin, past)
 
 
 def test_the_pioneers_support_is_a_rectangle_around_its_axles(ur5):

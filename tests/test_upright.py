@@ -15,8 +15,7 @@ import pytest
 from simhelpers import controller_with_first_frame
 
 from pbvs_pin.control.kinematic import PassivityController, ServoGains
-from pbvs_pin.control.secondary import split_objectives
-from pbvs_pin.control.step import FusedControlStep
+from pbvs_pin.control.step import FusedControlStep, split_objectives
 from pbvs_pin.control.upright import (
     LOOP_GAIN_MARGIN,
     RESTORING_RATE,

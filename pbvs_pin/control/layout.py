@@ -35,6 +35,8 @@ class Sizes(NamedTuple):
     """Pinocchio velocities."""
     n_arm: int
     """Arm joints."""
+    n_support: int
+    """Rows of the support objective (edges of the support polygon); 0: off."""
 
 
 class Indices(NamedTuple):
@@ -82,6 +84,13 @@ class Parameters(NamedTuple):
     """Lower arm joint limits of the joint-limit objective [q]. Shape (n_arm,)."""
     upper: np.ndarray
     """Upper arm joint limits [q]. Shape (n_arm,)."""
+    support_normals: np.ndarray
+    """Inward unit normals of the support's edges (:class:`~pbvs_pin.model.support.SupportRows`).
+    Shape (n_support, 2)."""
+    support_offsets: np.ndarray
+    """``n_i^T v_i + margin`` of each edge [m]. Shape (n_support,)."""
+    support_target: np.ndarray
+    """``theta_d`` of the support objective's turn at the edge [q]. Shape (n_arm,)."""
     selection: np.ndarray
     """``S``, actuated to Pinocchio velocities. Shape (nv, n)."""
     settings: np.ndarray
@@ -138,6 +147,14 @@ class Settings(NamedTuple):
     """``k_psi`` of the base-heading objective [1/s] (:func:`~.secondary.heading_term`); 0: off."""
     heading_offset: float = 0.0
     """Its ``psi_d``, the camera's heading at ``theta_d`` [rad]."""
+    support_gain: float = 0.0
+    """``k_s`` of the support objective [1/s] (:mod:`~pbvs_pin.control.support`); 0: off."""
+    support_turn_gain: float = 0.0
+    """Its turn at the edge: ``k_psi`` [1/s]; 0: no turn."""
+    support_turn_offset: float = 0.0
+    """That turn's ``psi_d`` [rad]."""
+    support_d0: float = 0.0
+    """That turn's ``d_0`` [m]; 0: obstacle avoidance off."""
 
 
 class State(NamedTuple):
@@ -218,7 +235,7 @@ def pack_indices(
 @njit(cache=True, inline="always")
 def sizes(indices: np.ndarray) -> Sizes:
     """The :class:`Sizes` at the start of ``indices``."""
-    return Sizes(n=indices[0], r=indices[1], nv=indices[2], n_arm=indices[3])
+    return Sizes(n=indices[0], r=indices[1], nv=indices[2], n_arm=indices[3], n_support=indices[4])
 
 
 @njit(cache=True, inline="always")
@@ -234,14 +251,14 @@ def index_views(indices: np.ndarray) -> Indices:
 @njit(cache=True, inline="always")
 def parameter_size(indices: np.ndarray) -> int:
     """Length of ``params``: the sum of the :class:`Parameters` fields' sizes."""
-    n, r, nv, n_arm = sizes(indices)
-    return 2 * r + 8 * n + 2 + n * n + 3 * n_arm + nv * n + SETTINGS
+    n, r, nv, n_arm, n_support = sizes(indices)
+    return 2 * r + 8 * n + 2 + n * n + 4 * n_arm + nv * n + 3 * n_support + SETTINGS
 
 
 @njit(cache=True, inline="always")
 def parameter_views(params: np.ndarray, indices: np.ndarray) -> Parameters:
     """Views of the constant floats in ``params`` (shape (parameter_size(indices),))."""
-    n, r, nv, n_arm = sizes(indices)
+    n, r, nv, n_arm, n_support = sizes(indices)
     xi_d, a = cut(params, 0, r)
     k, a = cut(params, a, r)
     k1, a = cut(params, a, n)
@@ -257,6 +274,9 @@ def parameter_views(params: np.ndarray, indices: np.ndarray) -> Parameters:
     posture_target, a = cut(params, a, n_arm)
     lower, a = cut(params, a, n_arm)
     upper, a = cut(params, a, n_arm)
+    support_normals, a = cut(params, a, 2 * n_support)
+    support_offsets, a = cut(params, a, n_support)
+    support_target, a = cut(params, a, n_arm)
     selection, a = cut(params, a, nv * n)
     settings_block, a = cut(params, a, SETTINGS)
     return Parameters(
@@ -275,6 +295,9 @@ def parameter_views(params: np.ndarray, indices: np.ndarray) -> Parameters:
         posture_target=posture_target,
         lower=lower,
         upper=upper,
+        support_normals=support_normals.reshape((n_support, 2)),
+        support_offsets=support_offsets,
+        support_target=support_target,
         selection=selection.reshape((nv, n)),
         settings=settings_block,
     )
@@ -306,20 +329,26 @@ def settings(block: np.ndarray) -> Settings:
         loop_gain_margin=block[19],
         heading_gain=block[20],
         heading_offset=block[21],
+        support_gain=block[22],
+        support_turn_gain=block[23],
+        support_turn_offset=block[24],
+        support_d0=block[25],
     )
 
 
 @njit(cache=True, inline="always")
 def state_size(indices: np.ndarray) -> int:
     """Length of ``state``: the sum of the :class:`State` fields' sizes."""
-    n, r, _, _ = sizes(indices)
+    size = sizes(indices)
+    n, r = size.n, size.r
     return 7 * n + 3 + r + r * n + 3 * r + STEP_SCALARS
 
 
 @njit(cache=True, inline="always")
 def state_views(state: np.ndarray, indices: np.ndarray) -> State:
     """Views of the memory and outputs in ``state`` (shape (state_size(indices),))."""
-    n, r, _, _ = sizes(indices)
+    size = sizes(indices)
+    n, r = size.n, size.r
     u_previous, a = cut(state, 0, n)
     u_dot, a = cut(state, a, n)
     impedance_velocity, a = cut(state, a, 3)

@@ -494,20 +494,8 @@ class BaseHeading(SecondaryObjective):
 
 
 BUILT_IN = (ArmPosture, BaseHeading, JointLimitAvoidance, ObstacleAvoidance)
-"""The kinds of objective the compiled step computes itself, from the settings; a user's own
-objectives (of any kind) are evaluated in Python at each step (:func:`contribution_of`)."""
-
-
-def split_objectives(
-    built_in: Sequence[SecondaryObjective], users: Sequence[SecondaryObjective]
-) -> tuple[list[SecondaryObjective], tuple[SecondaryObjective, ...]]:
-    """The objectives the compiled step computes, and those evaluated in Python before it.
-
-    Compiled: the :data:`BUILT_IN` kinds; in Python: the settings' others (the support
-    objective), then the user's own.
-    """
-    compiled = [objective for objective in built_in if type(objective) in BUILT_IN]
-    return compiled, (*(o for o in built_in if type(o) not in BUILT_IN), *users)
+"""The objectives of eqs. (16)-(19) (with the heading objective); the compiled step computes
+them and the support objective (:data:`pbvs_pin.control.step.COMPILED`)."""
 
 
 def contribution_of(

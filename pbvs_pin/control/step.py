@@ -33,6 +33,7 @@ After editing a kernel, delete the caches (``find pbvs_pin -name '*.nb[ci]' -del
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -64,11 +65,13 @@ from pbvs_pin.control.secondary import (
     secondary_input,
     secondary_vector,
 )
+from pbvs_pin.control.support import KeepSupported, support_term
 from pbvs_pin.control.tracking import predict_points
 from pbvs_pin.control.upright import Safety, upright_row
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.linalg import matmul
 from pbvs_pin.model.joint_angles import arm_angles
+from pbvs_pin.model.support import at_origin
 from pbvs_pin.perception.features import ImageMeasurement, feature_jacobians
 
 LOCAL = pin.LOCAL
@@ -79,6 +82,24 @@ _NO_WORLD = np.zeros((0, 3))
 if TYPE_CHECKING:
     from pbvs_pin.model.robot import MobileManipulator
     from pbvs_pin.perception.features import FeatureSet
+
+
+COMPILED = (*BUILT_IN, KeepSupported)
+"""The kinds of objective the compiled step computes itself, from the settings; a user's own
+objectives (of any kind) are evaluated in Python at each step
+(:func:`~pbvs_pin.control.secondary.contribution_of`)."""
+
+
+def split_objectives(
+    built_in: Sequence[SecondaryObjective], users: Sequence[SecondaryObjective]
+) -> tuple[list[SecondaryObjective], tuple[SecondaryObjective, ...]]:
+    """The objectives the compiled step computes, and those evaluated in Python before it.
+
+    Compiled: the settings' objectives of the :data:`COMPILED` kinds; in Python: the settings'
+    others, then the user's own.
+    """
+    compiled = [objective for objective in built_in if type(objective) in COMPILED]
+    return compiled, (*(o for o in built_in if type(o) not in COMPILED), *users)
 
 
 @njit(cache=True)
@@ -97,6 +118,8 @@ def fused_control_step(
     age: float,
     target_velocity: np.ndarray,
     laser: np.ndarray,
+    centre: np.ndarray,
+    centre_jacobian: np.ndarray,
     user_secondary: np.ndarray,
     seen: bool,
     dt: float,
@@ -126,6 +149,9 @@ def fused_control_step(
             (:mod:`~pbvs_pin.control.tracking`); NaN: servo on ``points`` as given.
         target_velocity: ``phat_dot`` [m/s]. Shape (3,).
         laser: ``[d, alpha]`` of the nearest return [m, rad]. Shape (2,).
+        centre: The centre of mass with the platform at the origin [m], for the support
+            objective (not read when it is off). Shape (3,).
+        centre_jacobian: Its Jacobian (``pin.jacobianCenterOfMass`` there). Shape (3, nv).
         user_secondary: The user's objectives' part of ``Lambda``, added to the built-in
             terms. Shape (n,).
         seen: There is a measurement (``points``, ``depths``, or the prediction) to servo on;
@@ -164,8 +190,19 @@ def fused_control_step(
         share = heading_share(laser[0], laser[1], d0)
         heading = heading_term(rotation, q, setting.heading_gain, setting.heading_offset)
         secondary[n_base - 1] += share * heading
+    others = np.zeros(n)  # the support objective's, then the user's objectives'
+    if setting.support_gain > 0.0:
+        turn, share = 0.0, 0.0
+        if setting.support_turn_gain > 0.0 and n_base >= 2:
+            turn = heading_term(rotation, q, setting.support_turn_gain, setting.support_turn_offset)
+            share = heading_share(laser[0], 0.0, setting.support_d0)  # at any angle
+        support_term(
+            centre, centre_jacobian, p.selection[:, n_base:], p.support_normals,
+            p.support_offsets, setting.support_gain, theta, p.support_target,
+            index.arm_continuous, turn, share, others,
+        )  # fmt: skip
     for j in range(n):  # the user's objectives, evaluated before the call
-        secondary[j] += user_secondary[j]
+        secondary[j] += others[j] + user_secondary[j]
     if seen:
         _servo(
             frame_jacobian, rotation, translation, points, depths, world, age, target_velocity,
@@ -281,11 +318,10 @@ class FusedControlStep:
         controller: The kinematic controller (its gains and feedback law: the passivity law's
             or the IBVS baseline's).
         compensator: The dynamic compensator (its loop model, rows, ``K_D``).
-        objectives: The settings' built-in secondary objectives (at most one of each kind),
-            computed inside the compiled step.
-        user_objectives: The objectives evaluated in Python before each call: the settings'
-            others (:class:`~pbvs_pin.control.support.KeepSupported`) and the user's own
-            (whatever their kind).
+        objectives: The settings' secondary objectives of the kinds in :data:`COMPILED` (at
+            most one of each), computed inside the compiled step.
+        user_objectives: The user's own objectives (whatever their kind), evaluated in Python
+            before each call.
 
     Raises:
         GainError: If ``objectives`` holds two of one kind, or one not built in.
@@ -303,7 +339,9 @@ class FusedControlStep:
     ) -> None:
         self.model = model
         n, r = model.n, features.size
-        size = layout.Sizes(n=n, r=r, nv=model.model.nv, n_arm=model.n_arm)
+        [support] = [o for o in objectives if isinstance(o, KeepSupported)] or [None]
+        rows = 0 if support is None else len(support.rows.offsets)
+        size = layout.Sizes(n=n, r=r, nv=model.model.nv, n_arm=model.n_arm, n_support=rows)
         self.indices = layout.pack_indices(
             size, features.rows, model.arm_q_indices, model.arm_continuous
         )
@@ -324,11 +362,11 @@ class FusedControlStep:
         p.lower[:], p.upper[:] = model.arm_position_limits()
         p.selection[:] = model.selection
         kinds = [type(objective) for objective in objectives]
-        if len(set(kinds)) != len(kinds) or not all(kind in BUILT_IN for kind in kinds):
+        if len(set(kinds)) != len(kinds) or not all(kind in COMPILED for kind in kinds):
             names = ", ".join(kind.__name__ for kind in kinds)
             raise GainError(
                 f"FusedControlStep objectives: expected at most one of each built-in kind "
-                f"({', '.join(kind.__name__ for kind in BUILT_IN)}), got {names}; give others "
+                f"({', '.join(kind.__name__ for kind in COMPILED)}), got {names}; give others "
                 "as user_objectives"
             )
         switched_on = {}
@@ -350,6 +388,15 @@ class FusedControlStep:
                 switched_on.update(
                     obstacle=True, k_u=objective.k_u, k_w=objective.k_w, d0=objective.d0,
                     impedance_mass=objective.mass, impedance_damping=objective.damping,
+                )  # fmt: skip
+            elif isinstance(objective, KeepSupported):
+                p.support_normals[:] = objective.rows.normals
+                p.support_offsets[:] = objective.rows.offsets
+                p.support_target[:] = objective.target_or_zero
+                turn = objective.heading_gain if objective.turns(model.n_base) else 0.0
+                switched_on.update(
+                    support_gain=objective.gain, support_turn_gain=turn,
+                    support_turn_offset=objective.heading_offset, support_d0=objective.d0,
                 )  # fmt: skip
         p.settings[:] = layout.Settings(
             focal=model.camera.focal_px,
@@ -377,6 +424,13 @@ class FusedControlStep:
             model.selection,
             np.zeros(model.model.nv),
         )
+        self.support = None if support is None else (support.data, at_origin(model.neutral()))
+        """The support objective's scratch ``pin.Data`` and configuration, its platform at the
+        origin (:func:`~pbvs_pin.model.support.at_origin`), for the centre of mass and its
+        Jacobian; None: the objective is off."""
+        self._no_centre = (np.zeros(3), np.zeros((3, model.model.nv)))
+        """``centre`` and ``centre_jacobian`` handed to the compiled step when the support
+        objective is off (not read)."""
 
     def _bind_views(self) -> None:
         """Set the named views into ``params`` and ``state`` (after building or copying)."""
@@ -442,16 +496,29 @@ class FusedControlStep:
         bias = pin.nonLinearEffects(model, data, q, v_pin)
         gravity = pin.computeGeneralizedGravity(model, data, q)
         world, age = (_NO_WORLD, NAN) if predict_from is None else predict_from
+        centre, centre_jacobian = self.centre_of_mass(q)
         if self.user_objectives:
             self._evaluate_user_objectives(q, placement.rotation, laser, dt)
         seen = measurement is not None
         points, depths = (measurement.points, measurement.depths) if seen else self._unseen
         fused_control_step(
             jacobian, placement.rotation, placement.translation, mass, bias, gravity, q, v,
-            points, depths, world, age, target_velocity, laser, self._user_secondary, seen, dt,
-            self.params, self.indices, self.state,
+            points, depths, world, age, target_velocity, laser, centre, centre_jacobian,
+            self._user_secondary, seen, dt, self.params, self.indices, self.state,
         )  # fmt: skip
         return self._u, self._v_ref, self._scalars[self._v2]
+
+    def centre_of_mass(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The centre of mass [m] (3,) and its Jacobian (3, nv), platform at the origin.
+
+        The support objective's inputs (:mod:`pbvs_pin.model.support`); zeros when it is off.
+        """
+        if self.support is None:
+            return self._no_centre
+        support_data, at_origin_q = self.support
+        at_origin_q[4:] = q[4:]
+        jacobian = pin.jacobianCenterOfMass(self.model.model, support_data, at_origin_q)
+        return support_data.com[0], jacobian
 
     def _evaluate_user_objectives(
         self, q: np.ndarray, rotation: np.ndarray, laser: np.ndarray, dt: float

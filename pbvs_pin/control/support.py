@@ -41,6 +41,10 @@ the Panda's Experiments 2-3 oscillated at 3.4-13 px RMS on MuJoCo, rule 3). ``s_
 the yaw to obstacle avoidance near an obstacle at any angle (with the
 heading objective's own share, which gives an obstacle abeam the full turn, the UR10 hit
 Experiment 2's obstacle: clearance -0.12 m).
+
+:func:`support_term` is the objective's arithmetic, compiled: the control step
+(:mod:`pbvs_pin.control.step`) calls it with the centre of mass and its Jacobian from one
+Pinocchio call, and :meth:`KeepSupported.contribution`, the reference, with its own.
 """
 
 from __future__ import annotations
@@ -48,6 +52,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numba import njit
 
 from pbvs_pin.control.secondary import (
     SecondaryInput,
@@ -81,6 +86,77 @@ measurement: the full ``k_psi`` made the UR5's Experiment 3 on MuJoCo oscillate 
 Experiment 2 posture holds (0.055 rad)."""
 
 
+@njit(cache=True, inline="always")
+def support_term(
+    centre: np.ndarray,
+    centre_jacobian: np.ndarray,
+    arm_columns: np.ndarray,
+    normals: np.ndarray,
+    offsets: np.ndarray,
+    gain: float,
+    theta: np.ndarray,
+    target: np.ndarray,
+    continuous: np.ndarray,
+    turn: float,
+    share_distance: float,
+    out: np.ndarray,
+) -> None:
+    r"""Add the objective's ``Lambda`` (module docstring) to ``out``: nothing unless a row is short.
+
+    Args:
+        centre: The centre of mass, platform at the origin [m]. Shape (3,).
+        centre_jacobian: Its Jacobian, Pinocchio velocities (``pin.jacobianCenterOfMass``).
+            Shape (3, nv).
+        arm_columns: The selection's arm columns. Shape (nv, n_arm).
+        normals: Inward unit normals of the support's edges. Shape (m, 2).
+        offsets: ``n_i^T v_i + margin`` [m]. Shape (m,).
+        gain: ``k_s`` [1/s].
+        theta: The arm's positions [rad or m]. Shape (n_arm,).
+        target: ``theta_d`` [rad or m]. Shape (n_arm,).
+        continuous: 1 where an arm joint is continuous. Shape (n_arm,).
+        turn: The heading objective's turn ``k_psi (psi - psi_d)`` at the edge's gain
+            (:func:`~pbvs_pin.control.secondary.heading_term`); 0: no turn.
+        share_distance: ``s_d``, the obstacle's share (:func:`heading_share` at any angle).
+        out: ``Lambda`` (n,): the arm's part is its last n_arm entries, the turn goes to the
+            entry before them.
+    """
+    worst, least = 0, np.inf
+    for i in range(normals.shape[0]):  # s_i = n_i^T c - offset_i
+        row = normals[i, 0] * centre[0] + normals[i, 1] * centre[1] - offsets[i]
+        if row < least or i == 0:
+            worst, least = i, row
+    if not least < 0.0:
+        return
+    n_arm = arm_columns.shape[1]
+    n_base = out.shape[0] - n_arm
+    g = np.zeros(n_arm)  # ds_i / d theta, only here: most steps stand clear
+    for j in range(n_arm):
+        along_x, along_y = 0.0, 0.0  # the centre's velocity on the floor per unit of joint j
+        for k in range(arm_columns.shape[0]):
+            if arm_columns[k, j] != 0.0:
+                along_x += centre_jacobian[0, k] * arm_columns[k, j]
+                along_y += centre_jacobian[1, k] * arm_columns[k, j]
+        g[j] = normals[worst, 0] * along_x + normals[worst, 1] * along_y
+    norm_squared = 0.0
+    for j in range(n_arm):
+        norm_squared += g[j] * g[j]
+    push = gain * -least
+    for j in range(n_arm):
+        out[n_base + j] += push * g[j] / max(norm_squared, GRADIENT_FLOOR)
+    if turn == 0.0:
+        return
+    home = arm_difference(target, theta, continuous)
+    pull, along_home, home_squared = 0.0, 0.0, 0.0
+    for j in range(n_arm):
+        along_home += g[j] * home[j]
+        home_squared += home[j] * home[j]
+    size = np.sqrt(norm_squared) * np.sqrt(home_squared)
+    if size > 0.0:
+        pull = max(0.0, -along_home) / size
+    share = pull * min(1.0, -least / EDGE_RAMP) * share_distance
+    out[n_base - 1] += share * turn
+
+
 class KeepSupported(SecondaryObjective):
     """Push the arm back when the centre of mass comes within ``margin`` of the support's edge.
 
@@ -96,6 +172,7 @@ class KeepSupported(SecondaryObjective):
         heading_gain: ``k_psi`` of the platform's turn at the edge [1/s]; 0: no turn.
         heading_offset: ``psi_d``, the camera's heading at ``theta_d`` [rad].
         d0: Distance at which obstacle avoidance starts [m]; 0: avoidance off.
+        data: Scratch ``pin.Data`` of the robot's model, for the centre of mass.
     """
 
     def __init__(
@@ -132,11 +209,11 @@ class KeepSupported(SecondaryObjective):
             raise GainError(f"KeepSupported.heading_offset: expected finite, got {heading_offset}")
         self.heading_gain, self.heading_offset, self.d0 = heading_gain, heading_offset, d0
         support = np.asarray(support, dtype=float)
-        self._data = model.model.createData()
+        self.data = model.model.createData()
         margins = np.full(len(support), float(margin))
         if target is not None:
             q = model.with_arm_positions(model.neutral(), target)  # platform at the origin
-            at_target = SupportRows(model, support, 0.0).slack(q, self._data)[0]
+            at_target = SupportRows(model, support, 0.0).slack(q, self.data)[0]
             margins = np.minimum(margins, np.maximum(at_target, 0.0))
         self.rows = SupportRows(model, support, margins)
         self.gain = gain
@@ -146,30 +223,32 @@ class KeepSupported(SecondaryObjective):
     def contribution(self, state: SecondaryInput, n_base: int, n: int) -> np.ndarray:
         """``[0, .., w Lambda_omega, Lambda_arm]``: zero unless a row is below its margin.
 
-        Shape (n,).
+        Shape (n,). The compiled step computes the same (:func:`support_term`).
         """
         out = np.zeros(n)
         if state.q is None:
             return out
-        slack, centre_jacobian = self.rows.rows(at_origin(state.q), self._data)
-        worst = int(slack.argmin())
-        if slack[worst] >= 0.0:
-            return out
-        g = self.rows.gradient(centre_jacobian)[worst]  # only here: most steps stand clear
-        out[n_base:] = self.gain * (-slack[worst]) * g / max(float(g @ g), GRADIENT_FLOOR)
-        if (
-            self.heading_gain > 0.0
-            and self.target is not None
-            and n_base >= 2
-            and state.camera_rotation is not None
-        ):
-            home = arm_difference(self.target, np.asarray(state.arm_positions), self.continuous)
-            size = float(np.linalg.norm(g) * np.linalg.norm(home))
-            blocked = max(0.0, -float(g @ home)) / size if size > 0.0 else 0.0
-            share = blocked * min(1.0, -slack[worst] / EDGE_RAMP)
-            share *= heading_share(state.obstacle_distance, 0.0, self.d0)  # at any angle
+        _, centre_jacobian = self.rows.rows(at_origin(state.q), self.data)  # sets data.com
+        turn, share = 0.0, 0.0
+        if self.turns(n_base) and state.camera_rotation is not None:
             rotation = np.asarray(state.camera_rotation, dtype=float)
             q = np.asarray(state.q, dtype=float)
             turn = heading_term(rotation, q, self.heading_gain, self.heading_offset)
-            out[n_base - 1] = share * turn
+            share = heading_share(state.obstacle_distance, 0.0, self.d0)  # at any angle
+        support_term(
+            self.data.com[0], centre_jacobian, self.rows.arm_columns, self.rows.normals,
+            self.rows.offsets, self.gain, np.asarray(state.arm_positions, dtype=float),
+            self.target_or_zero, self.continuous.astype(np.int64), turn, share, out,
+        )  # fmt: skip
         return out
+
+    def turns(self, n_base: int) -> bool:
+        """The platform turns at the edge: a turn gain, a posture target, two or more wheels."""
+        return self.heading_gain > 0.0 and self.target is not None and n_base >= 2
+
+    @property
+    def target_or_zero(self) -> np.ndarray:
+        """``theta_d`` [rad or m], zeros without one (then nothing reads it). Shape (n_arm,)."""
+        if self.target is None:
+            return np.zeros(self.rows.arm_columns.shape[1])
+        return self.target
