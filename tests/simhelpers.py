@@ -147,13 +147,14 @@ def step_modular_reference(control) -> None:
 
     The reference composition of the control step, one class per equation: the tracker's
     NumPy prediction (``TargetTracker.current``), the objectives' ``contribution`` (eq. 16,
-    each with its own state), ``PassivityController.step`` (eq. 34) and
-    ``DynamicCompensator.step`` (eq. 20, its own derivative filter). With nothing to servo on
+    each with its own state), ``PassivityController.step`` (eq. 34, with the support's
+    barrier) and ``DynamicCompensator.step`` (eq. 20, its own derivative filter). With nothing to servo on
     the command is zero and the derivative restarts from zero, as the controller documents.
     ``control.diagnostics()`` then gives the reference's output; ``control.reference`` is True.
     """
     from pbvs_pin.control.balanced import joint_room
     from pbvs_pin.control.secondary import secondary_input, secondary_vector
+    from pbvs_pin.control.support import KeepSupported
     from pbvs_pin.control.upright import upright_row
 
     model, last = control.model, {}
@@ -177,9 +178,11 @@ def step_modular_reference(control) -> None:
             model.camera, measurement, camera_jacobian, rotation.T
         )
         room = joint_room(state.arm_positions, *limits, model.n_base, model.n)
+        supports = [o for o in control.objectives if isinstance(o, KeepSupported)]
+        barrier = supports[0].barrier(q, model.n) if supports else None
         output = control.law.step(
             xi - control.xi_d, jacobian, object_jacobian, velocity, secondary,
-            upright_row(rotation, camera_jacobian), room,
+            upright_row(rotation, camera_jacobian), room, barrier,
         )  # fmt: skip
         last["output"] = output, (jacobian, object_jacobian)
         v_ref, v2 = compensator.step(q, v, output.u, dt)

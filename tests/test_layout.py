@@ -32,6 +32,7 @@ def test_parameter_fields_tile_the_float_buffer(indices):
     assert views.posture_target.shape == (3,)
     assert views.support_normals.shape == (4, 2)
     assert views.support_offsets.shape == (4,)
+    assert views.support_barrier_offsets.shape == (4,)
 
 
 def test_state_fields_tile_the_state_buffer(indices):

@@ -31,6 +31,7 @@ from numba import njit
 
 from pbvs_pin.control.balanced import BALANCED_SHARE, balanced_feedback, balanced_gain
 from pbvs_pin.control.stops import stop_weights, weighted_inverse
+from pbvs_pin.control.support import keep_inside
 from pbvs_pin.control.upright import (
     LOOP_GAIN_MARGIN,
     RESTORING_RATE,
@@ -173,6 +174,7 @@ def passivity_law(
     safety: Safety,
     room_up: np.ndarray,
     room_down: np.ndarray,
+    barrier: np.ndarray,
 ) -> LawOutput:
     r"""Eq. (10)/(34) in controller units, saturated uniformly to the velocity limits.
 
@@ -203,6 +205,8 @@ def passivity_law(
         safety: The departures' settings; ``camera_period = 0`` turns the loop-gain net off.
         room_up: Each velocity's room towards its upper limit (:func:`joint_room`). Shape (n,).
         room_down: Its room towards the lower limit. Shape (n,).
+        barrier: ``[b, g]``: keep ``g u >= b`` (:func:`~pbvs_pin.control.support.keep_inside`,
+            the support's barrier); ``b = -inf`` leaves ``u`` as it is. Shape (n + 1,).
 
     Returns:
         The command and its diagnostics; ``valid`` is False (and ``u`` zero) when an input
@@ -271,6 +275,7 @@ def passivity_law(
         if np.min(weights) >= 1.0:
             break
     gains = SafetyOutput(loop_gain, gain_factor, sigma_phi, upright_weight)
+    keep_inside(raw, inverse, barrier)  # standing, above the image task
     u, factor = saturate(raw, limits)
     if not all_finite(u):
         return LawOutput(False, zero, zero, zero, zero, np.nan, np.nan, False, 1.0, gains)
@@ -478,6 +483,8 @@ class PassivityController:
         self._k: np.ndarray | None = None
         self.room = np.ones(n)
         """Room of each velocity towards its limits (:func:`joint_room`): none is near one."""
+        self._no_barrier = np.r_[-np.inf, np.zeros(n)]
+        """``[b, g]`` of no barrier (``b = -inf``)."""
 
     def pseudo_inverse(self, jacobian: np.ndarray) -> tuple[np.ndarray, float, bool]:
         """Weighted right pseudo-inverse ``J#``, damped near singularities.
@@ -503,6 +510,7 @@ class PassivityController:
         secondary: npt.ArrayLike,
         upright: np.ndarray | None = None,
         room: tuple[np.ndarray, np.ndarray] | None = None,
+        barrier: np.ndarray | None = None,
     ) -> ControlOutput:
         """Compute the command ``u`` of eq. (34) (:func:`passivity_law`).
 
@@ -517,6 +525,8 @@ class PassivityController:
             room: Each velocity's room towards its upper and lower limits
                 (:func:`joint_room`), for the balanced feedback; None: no joint near a limit.
                 Shapes (n,), (n,).
+            barrier: ``[b, g]``, the support's barrier
+                (:func:`~pbvs_pin.control.support.support_barrier`); None: none. Shape (n + 1,).
 
         Returns:
             The command and its diagnostics. A non-finite input gives ``u = 0``,
@@ -536,6 +546,7 @@ class PassivityController:
             secondary, self.feature_gains(r), self.k1, self.k2, self.weight_inverse,
             self.damping, self.velocity_limits, self.feedback_law, upright, self.safety,
             *(room if room is not None else (self.room, self.room)),
+            self._no_barrier if barrier is None else np.asarray(barrier, dtype=float),
         )  # fmt: skip
         if not law.valid:
             return self.zero_output(r)

@@ -89,6 +89,8 @@ class Parameters(NamedTuple):
     Shape (n_support, 2)."""
     support_offsets: np.ndarray
     """``n_i^T v_i + margin`` of each edge [m]. Shape (n_support,)."""
+    support_barrier_offsets: np.ndarray
+    """``n_i^T v_i + d_min,i`` [m] of the support's barrier. Shape (n_support,)."""
     support_target: np.ndarray
     """``theta_d`` of the support objective's turn at the edge [q]. Shape (n_arm,)."""
     selection: np.ndarray
@@ -252,7 +254,7 @@ def index_views(indices: np.ndarray) -> Indices:
 def parameter_size(indices: np.ndarray) -> int:
     """Length of ``params``: the sum of the :class:`Parameters` fields' sizes."""
     n, r, nv, n_arm, n_support = sizes(indices)
-    return 2 * r + 8 * n + 2 + n * n + 4 * n_arm + nv * n + 3 * n_support + SETTINGS
+    return 2 * r + 8 * n + 2 + n * n + 4 * n_arm + nv * n + 4 * n_support + SETTINGS
 
 
 @njit(cache=True, inline="always")
@@ -276,6 +278,7 @@ def parameter_views(params: np.ndarray, indices: np.ndarray) -> Parameters:
     upper, a = cut(params, a, n_arm)
     support_normals, a = cut(params, a, 2 * n_support)
     support_offsets, a = cut(params, a, n_support)
+    support_barrier_offsets, a = cut(params, a, n_support)
     support_target, a = cut(params, a, n_arm)
     selection, a = cut(params, a, nv * n)
     settings_block, a = cut(params, a, SETTINGS)
@@ -297,6 +300,7 @@ def parameter_views(params: np.ndarray, indices: np.ndarray) -> Parameters:
         upper=upper,
         support_normals=support_normals.reshape((n_support, 2)),
         support_offsets=support_offsets,
+        support_barrier_offsets=support_barrier_offsets,
         support_target=support_target,
         selection=selection.reshape((nv, n)),
         settings=settings_block,

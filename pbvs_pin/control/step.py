@@ -65,7 +65,7 @@ from pbvs_pin.control.secondary import (
     secondary_input,
     secondary_vector,
 )
-from pbvs_pin.control.support import KeepSupported, support_term
+from pbvs_pin.control.support import KeepSupported, support_barrier, support_term
 from pbvs_pin.control.tracking import predict_points
 from pbvs_pin.control.upright import Safety, upright_row
 from pbvs_pin.exceptions import GainError
@@ -204,9 +204,16 @@ def fused_control_step(
     for j in range(n):  # the user's objectives, evaluated before the call
         secondary[j] += others[j] + user_secondary[j]
     if seen:
+        barrier = np.zeros(n + 1)  # standing, above the image task
+        barrier[0] = -np.inf
+        if setting.support_gain > 0.0:
+            support_barrier(
+                centre, centre_jacobian, p.selection[:, n_base:], p.support_normals,
+                p.support_barrier_offsets, barrier,
+            )  # fmt: skip
         _servo(
             frame_jacobian, rotation, translation, points, depths, world, age, target_velocity,
-            secondary, theta, dt, p, setting, index, out,
+            secondary, theta, barrier, dt, p, setting, index, out,
         )  # fmt: skip
     else:  # nothing to servo on: eq. (20) brakes a zero command; its derivative restarts
         _brake(out)
@@ -222,11 +229,12 @@ def fused_control_step(
 @njit(cache=True, inline="always")
 def _servo(
     frame_jacobian, rotation, translation, points, depths, world, age, target_velocity,
-    secondary, theta, dt, p, setting, index, out,
+    secondary, theta, barrier, dt, p, setting, index, out,
 ) -> None:  # fmt: skip
     """Eqs. (3) and (34) on what is seen, and the command's filtered derivative for eq. (20).
 
-    Arguments as :func:`fused_control_step`'s; ``u`` and ``udot`` go into ``out``.
+    Arguments as :func:`fused_control_step`'s, and ``barrier``, the support's ``[b, g]``
+    (:func:`~pbvs_pin.control.support.support_barrier`); ``u`` and ``udot`` go into ``out``.
     """
     n = secondary.shape[0]
     if not np.isnan(age):  # the prediction: the frame's points moved by phat_dot, eq. (2) at q
@@ -256,7 +264,7 @@ def _servo(
     law = passivity_law(
         error, jacobian, object_jacobian, target_velocity, secondary, p.k, p.k1, p.k2,
         p.weight_inverse, p.pseudo_inverse_damping, p.velocity_limits, setting.feedback_law,
-        upright, safety, room_up, room_down,
+        upright, safety, room_up, room_down, barrier,
     )  # fmt: skip
     u = law.u
     # the low-pass filtered derivative of the command, for eq. (20)
@@ -392,6 +400,7 @@ class FusedControlStep:
             elif isinstance(objective, KeepSupported):
                 p.support_normals[:] = objective.rows.normals
                 p.support_offsets[:] = objective.rows.offsets
+                p.support_barrier_offsets[:] = objective.barrier_offsets
                 p.support_target[:] = objective.target_or_zero
                 turn = objective.heading_gain if objective.turns(model.n_base) else 0.0
                 switched_on.update(

@@ -42,6 +42,28 @@ the yaw to obstacle avoidance near an obstacle at any angle (with the
 heading objective's own share, which gives an obstacle abeam the full turn, the UR10 hit
 Experiment 2's obstacle: clearance -0.12 m).
 
+**The barrier, above the image task.** Working in the image task's null space, the objective
+cannot refuse a reach the task asks for: on the MuJoCo plant the UR10 tipped the Pioneer in
+Experiments 2 and 3, reaching after the target until its centre of mass stood 0.014 m past the
+front edge. So the command itself is kept on
+
+.. math:: g^\top \dot\theta \ge b = -\gamma\,(d - d_{min}),\qquad d = n_i^\top c - n_i^\top v_i
+
+(``d`` the centre's distance from the edge whose row is least past its kept distance, ``g`` its
+gradient): the centre of mass approaches ``d_min`` no faster than ``exp(-gamma t)`` (``gamma``:
+:data:`BARRIER_RATE`), and past it is driven back at that rate. ``d_min`` is :data:`EDGE_KEPT`,
+or the posture target's own distance from that edge where it is less (the controller's model
+may put the target past the edge: with the model error of the experiments, the UR3e's home
+stands 0.0045 m past it in the model and 0.019 m inside on the plant; a ``d_min`` the target
+does not keep would hold the arm against eq. (19)).
+:func:`keep_inside` projects the command onto that half-space in
+``W``'s metric, along ``W^-1 g`` (the arm's joints only), after eq. (34) and before the
+velocity limits; far from the edge ``b`` is far below any ``g u`` the arm reaches, and the
+command is left as it is. This puts standing above the image task, where the paper has no such
+row: where the barrier acts, ``u`` is not eq. (34)'s, and the image error is left to the
+platform (the feedback drives it where the arm may not reach). Eq. (9) is evaluated in every
+run, so a run where that costs the image error shows it.
+
 :func:`support_term` is the objective's arithmetic, compiled: the control step
 (:mod:`pbvs_pin.control.step`) calls it with the centre of mass and its Jacobian from one
 Pinocchio call, and :meth:`KeepSupported.contribution`, the reference, with its own.
@@ -79,11 +101,59 @@ in full. Chosen by measurement: with 0.05 an unshipped UR5 with limited joints
 ``theta_d``, held 0.01 m below the margin where the turn was a fifth of its gain (0.045 rad
 with 0.02)."""
 
+EDGE_KEPT = 0.01
+"""``d_min`` [m]: the distance inside the support's edge that the command never takes the
+centre of mass past (the barrier)."""
+
+BARRIER_RATE = 5.0
+"""``gamma`` [1/s]: the rate at which the barrier lets the centre of mass approach ``d_min``."""
+
 EDGE_TURN = 0.3
 """The platform's turn at the edge as a share of ``k_psi`` (``secondary.k_heading``). Chosen by
 measurement: the full ``k_psi`` made the UR5's Experiment 3 on MuJoCo oscillate at 9.35 px RMS
 (rule 3; with 0.3, 2.58 and 1.32 with ramps of 0.02 and 0.05 m), and with 0.3 the UR10's
 Experiment 2 posture holds (0.055 rad)."""
+
+
+@njit(cache=True, inline="always")
+def worst_row(centre: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> tuple[int, float]:
+    """The least row ``s_i = n_i^T c - offset_i`` [m] and its index (the first of equals).
+
+    Args:
+        centre: The centre of mass, platform at the origin [m]. Shape (3,) or (2,).
+        normals: Inward unit normals of the support's edges. Shape (m, 2).
+        offsets: ``n_i^T v_i + margin_i`` [m]. Shape (m,).
+    """
+    worst, least = 0, np.inf
+    for i in range(normals.shape[0]):
+        row = normals[i, 0] * centre[0] + normals[i, 1] * centre[1] - offsets[i]
+        if row < least or i == 0:
+            worst, least = i, row
+    return worst, least
+
+
+@njit(cache=True, inline="always")
+def row_gradient(
+    centre_jacobian: np.ndarray, arm_columns: np.ndarray, normals: np.ndarray, row: int
+) -> np.ndarray:
+    """``g = ds_row / d theta`` [m/rad or m/m]. Shape (n_arm,).
+
+    Args:
+        centre_jacobian: The centre of mass's Jacobian, Pinocchio velocities. Shape (3, nv).
+        arm_columns: The selection's arm columns. Shape (nv, n_arm).
+        normals: Inward unit normals of the support's edges. Shape (m, 2).
+        row: The row.
+    """
+    n_arm = arm_columns.shape[1]
+    g = np.zeros(n_arm)
+    for j in range(n_arm):
+        along_x, along_y = 0.0, 0.0  # the centre's velocity on the floor per unit of joint j
+        for k in range(arm_columns.shape[0]):
+            if arm_columns[k, j] != 0.0:
+                along_x += centre_jacobian[0, k] * arm_columns[k, j]
+                along_y += centre_jacobian[1, k] * arm_columns[k, j]
+        g[j] = normals[row, 0] * along_x + normals[row, 1] * along_y
+    return g
 
 
 @njit(cache=True, inline="always")
@@ -120,23 +190,12 @@ def support_term(
         out: ``Lambda`` (n,): the arm's part is its last n_arm entries, the turn goes to the
             entry before them.
     """
-    worst, least = 0, np.inf
-    for i in range(normals.shape[0]):  # s_i = n_i^T c - offset_i
-        row = normals[i, 0] * centre[0] + normals[i, 1] * centre[1] - offsets[i]
-        if row < least or i == 0:
-            worst, least = i, row
+    worst, least = worst_row(centre, normals, offsets)
     if not least < 0.0:
         return
     n_arm = arm_columns.shape[1]
     n_base = out.shape[0] - n_arm
-    g = np.zeros(n_arm)  # ds_i / d theta, only here: most steps stand clear
-    for j in range(n_arm):
-        along_x, along_y = 0.0, 0.0  # the centre's velocity on the floor per unit of joint j
-        for k in range(arm_columns.shape[0]):
-            if arm_columns[k, j] != 0.0:
-                along_x += centre_jacobian[0, k] * arm_columns[k, j]
-                along_y += centre_jacobian[1, k] * arm_columns[k, j]
-        g[j] = normals[worst, 0] * along_x + normals[worst, 1] * along_y
+    g = row_gradient(centre_jacobian, arm_columns, normals, worst)  # most steps stand clear
     norm_squared = 0.0
     for j in range(n_arm):
         norm_squared += g[j] * g[j]
@@ -155,6 +214,80 @@ def support_term(
         pull = max(0.0, -along_home) / size
     share = pull * min(1.0, -least / EDGE_RAMP) * share_distance
     out[n_base - 1] += share * turn
+
+
+@njit(cache=True, inline="always")
+def support_barrier(
+    centre: np.ndarray,
+    centre_jacobian: np.ndarray,
+    arm_columns: np.ndarray,
+    normals: np.ndarray,
+    barrier_offsets: np.ndarray,
+    barrier: np.ndarray,
+) -> None:
+    r"""The barrier's row ``[b, g]`` into ``barrier`` (module docstring): ``g u >= b``.
+
+    ``b = -gamma h`` with ``h = n_i^T c - (n_i^T v_i + d_min,i)`` the least row's distance
+    past its kept distance from the edge, and ``g = dh / d theta``.
+
+    Args:
+        centre: The centre of mass, platform at the origin [m]. Shape (3,).
+        centre_jacobian: Its Jacobian, Pinocchio velocities. Shape (3, nv).
+        arm_columns: The selection's arm columns. Shape (nv, n_arm).
+        normals: Inward unit normals of the support's edges. Shape (m, 2).
+        barrier_offsets: ``n_i^T v_i + d_min,i`` [m] (:attr:`KeepSupported.barrier_offsets`).
+            Shape (m,).
+        barrier: ``[b, g]`` with ``g`` over the actuated velocities (zero on the platform's).
+            Shape (n + 1,); overwritten.
+    """
+    worst, least = worst_row(centre, normals, barrier_offsets)
+    g = row_gradient(centre_jacobian, arm_columns, normals, worst)
+    n_base = barrier.shape[0] - 1 - g.shape[0]
+    barrier[:] = 0.0
+    barrier[0] = -BARRIER_RATE * least
+    barrier[1 + n_base :] = g
+
+
+@njit(cache=True, inline="always")
+def keep_inside(command: np.ndarray, weight_inverse: np.ndarray, barrier: np.ndarray) -> bool:
+    r"""Project ``command`` onto ``g u >= b`` in ``W``'s metric (in place); True if it acted.
+
+    .. math:: u \leftarrow u + W^{-1} g\, \frac{b - g u}{g^\top W^{-1} g}
+              \quad\text{where } g u < b
+
+    the smallest change of ``u`` in ``W``'s metric that meets the row. It changes the feature
+    velocity too: the image task gives what the row takes (a correction kept inside the null
+    space of ``J``, so that the platform takes over, was tried: :doc:`departures`).
+
+    Args:
+        command: ``u`` [u]. Shape (n,).
+        weight_inverse: ``W^-1`` (the pseudo-inverse's, joints at their stops weighted out).
+            Shape (n, n).
+        barrier: ``[b, g]`` (:func:`support_barrier`); ``b = -inf``: nothing to do.
+            Shape (n + 1,).
+    """
+    bound = barrier[0]
+    if not bound > -np.inf:
+        return False
+    n = command.shape[0]
+    rate = 0.0
+    for j in range(n):
+        rate += barrier[1 + j] * command[j]
+    if rate >= bound:
+        return False
+    along = np.zeros(n)
+    for i in range(n):
+        for j in range(n):
+            along[i] += weight_inverse[i, j] * barrier[1 + j]
+    size = 0.0
+    for j in range(n):
+        size += barrier[1 + j] * along[j]
+    if not size > GRADIENT_FLOOR * GRADIENT_FLOOR:
+        return False
+    step = (bound - rate) / size
+    for j in range(n):
+        command[j] += step * along[j]
+    return True
 
 
 class KeepSupported(SecondaryObjective):
@@ -211,11 +344,16 @@ class KeepSupported(SecondaryObjective):
         support = np.asarray(support, dtype=float)
         self.data = model.model.createData()
         margins = np.full(len(support), float(margin))
+        kept = np.full(len(support), EDGE_KEPT)
         if target is not None:
             q = model.with_arm_positions(model.neutral(), target)  # platform at the origin
             at_target = SupportRows(model, support, 0.0).slack(q, self.data)[0]
             margins = np.minimum(margins, np.maximum(at_target, 0.0))
+            kept = np.minimum(kept, at_target)
         self.rows = SupportRows(model, support, margins)
+        self.barrier_offsets = self.rows.offsets - self.rows.margins + kept
+        """``n_i^T v_i + d_min,i`` [m]: the barrier keeps ``n_i^T c`` above each; ``d_min,i``
+        is :data:`EDGE_KEPT`, or the target's own distance from the edge where it is less."""
         self.gain = gain
         self.target = None if target is None else np.asarray(target, dtype=float)
         self.continuous = model.arm_continuous
@@ -241,6 +379,19 @@ class KeepSupported(SecondaryObjective):
             self.target_or_zero, self.continuous.astype(np.int64), turn, share, out,
         )  # fmt: skip
         return out
+
+    def barrier(self, q: np.ndarray, n: int) -> np.ndarray:
+        """``[b, g]`` of the barrier at ``q`` (:func:`support_barrier`), the reference's.
+
+        Shape (n + 1,).
+        """
+        row = np.empty(n + 1)
+        _, centre_jacobian = self.rows.rows(at_origin(q), self.data)  # sets data.com
+        support_barrier(
+            self.data.com[0], centre_jacobian, self.rows.arm_columns, self.rows.normals,
+            self.barrier_offsets, row,
+        )  # fmt: skip
+        return row
 
     def turns(self, n_base: int) -> bool:
         """The platform turns at the edge: a turn gain, a posture target, two or more wheels."""

@@ -300,8 +300,9 @@ class SecondarySection(Section):
     k_lambda: float = key(1.0, "k_Lambda of eq. (19) [1/s].", sign=POSITIVE)
     support: bool = key(
         True,
-        f"Keep the centre of mass {COM_MARGIN} m inside the platform's support polygon "
-        "(pbvs_pin.control.support; for a robot whose support is known: a two-wheel or "
+        f"Keep the centre of mass {COM_MARGIN} m inside the platform's support polygon in the "
+        "null space, and 0.01 m inside its edges above the image task (a barrier on the "
+        "command; pbvs_pin.control.support; for a robot whose support is known: a two-wheel or "
         "skid-steer platform with a URDF) [bool].",
     )
     k_support: float = key(

@@ -38,6 +38,7 @@ class SupportRows:
     Attributes:
         normals: Inward unit normal of each edge. Shape (m, 2).
         offsets: ``n_i^T v_i + margin`` [m]. Shape (m,).
+        margins: Each edge's margin [m]. Shape (m,).
         arm_columns: The selection's arm columns, Pinocchio velocities to arm joints.
             Shape (nv, n_arm).
     """
@@ -53,7 +54,8 @@ class SupportRows:
         edges = np.roll(vertices, -1, axis=0) - vertices
         normals = np.stack([-edges[:, 1], edges[:, 0]], axis=1)
         self.normals = normals / np.linalg.norm(normals, axis=1)[:, None]
-        self.offsets = np.sum(self.normals * vertices, axis=1) + margin
+        self.margins = np.broadcast_to(np.asarray(margin, dtype=float), (len(vertices),)).copy()
+        self.offsets = np.sum(self.normals * vertices, axis=1) + self.margins
         self.arm_columns = robot.selection[:, robot.n_base :]
 
     def slack(
