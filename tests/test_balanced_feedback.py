@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from pbvs_pin.control.balanced import BALANCED_SHARE, DIRECTION_FLOOR, LIMIT_ZONE, joint_room
-from pbvs_pin.control.kinematic import PassivityController, ServoGains
+from pbvs_pin.control.gains import ServoGains
+from pbvs_pin.control.kinematic import PassivityController
 from pbvs_pin.exceptions import GainError
 
 SCALE = 150.0

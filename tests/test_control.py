@@ -16,8 +16,9 @@ from scipy.integrate import quad
 from simhelpers import random_spd, storage_reference, weighted_pinv
 
 from pbvs_pin.control.compensation import Compensation, DynamicCompensator
+from pbvs_pin.control.gains import ServoGains
 from pbvs_pin.control.ibvs import ClassicIbvs
-from pbvs_pin.control.kinematic import PassivityController, ServoGains, saturate, storage_function
+from pbvs_pin.control.kinematic import PassivityController, saturate, storage_function
 from pbvs_pin.control.secondary import (
     ArmPosture,
     JointLimitAvoidance,

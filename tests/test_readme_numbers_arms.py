@@ -68,4 +68,6 @@ def test_the_net_on_six_and_seven_joint_arms():
         f"of Experiments 1-3 ({min(acting['4']) * 100:.0f}-{max(acting['4']) * 100:.0f} % in "
         "Experiment 4)"
     )
-    assert min(first_three) > 0.5 and max(first_three + acting["4"]) <= 1.0
+    # most samples, but where the support's barrier holds a heavy arm back at the edge the
+    # gain per sample is lower (32 % at the least since the barrier, 82 % before)
+    assert min(first_three) > 0.25 and max(first_three + acting["4"]) <= 1.0

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from pbvs_pin.bringup.home import CAMERA_FORWARD
-from pbvs_pin.control.kinematic import PassivityController, ServoGains
+from pbvs_pin.control.gains import ServoGains
+from pbvs_pin.control.kinematic import PassivityController
 from pbvs_pin.control.secondary import (
     BaseHeading,
     SecondaryInput,

@@ -14,7 +14,8 @@ import pinocchio as pin
 import pytest
 from simhelpers import controller_with_first_frame
 
-from pbvs_pin.control.kinematic import PassivityController, ServoGains
+from pbvs_pin.control.gains import ServoGains
+from pbvs_pin.control.kinematic import PassivityController
 from pbvs_pin.control.step import FusedControlStep, split_objectives
 from pbvs_pin.control.upright import (
     LOOP_GAIN_MARGIN,

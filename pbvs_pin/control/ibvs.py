@@ -19,7 +19,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from pbvs_pin.control.kinematic import IBVS, PassivityController, ServoGains
+from pbvs_pin.control.gains import ServoGains
+from pbvs_pin.control.kinematic import IBVS, PassivityController
 from pbvs_pin.exceptions import GainError
 
 

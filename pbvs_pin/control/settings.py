@@ -15,8 +15,9 @@ from typing import Protocol
 import numpy as np
 
 from pbvs_pin.control.compensation import Compensation, DynamicCompensator
+from pbvs_pin.control.gains import ServoGains
 from pbvs_pin.control.ibvs import ClassicIbvs
-from pbvs_pin.control.kinematic import PassivityController, ServoGains
+from pbvs_pin.control.kinematic import PassivityController
 from pbvs_pin.control.noise import noise_margin
 from pbvs_pin.control.secondary import (
     ArmPosture,

@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
-from pbvs_pin.control.kinematic import FEEDBACK_LAWS, ServoGains
+from pbvs_pin.control.gains import FEEDBACK_LAWS, ServoGains
 from pbvs_pin.control.upright import LOOP_GAIN_MARGIN, RESTORING_RATE
 from pbvs_pin.exceptions import GainError
 from pbvs_pin.model.camera import CameraIntrinsics
