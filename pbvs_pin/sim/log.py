@@ -41,13 +41,14 @@ import numpy as np
 from pbvs_pin.exceptions import LogError, OutputError
 from pbvs_pin.model.base import DifferentialDrive
 from pbvs_pin.model.camera import MIN_DEPTH
+from pbvs_pin.model.joint_angles import arm_angles
 from pbvs_pin.model.manipulability import arm_jacobian, manipulability
 from pbvs_pin.outputs import Output, check_output
 from pbvs_pin.perception.features import ImageMeasurement
 from pbvs_pin.sim.obstacles import clearance
 from pbvs_pin.sim.passivity_signals import feedback_terms, passivity_terms, true_passivity_terms
 from pbvs_pin.sim.scenario import obstacle_table
-from pbvs_pin.sim.sensing import planar_pose
+from pbvs_pin.sim.sensing import planar_of, planar_pose
 from pbvs_pin.validation import as_path
 
 if TYPE_CHECKING:
@@ -444,21 +445,25 @@ def _derived_in_one_pass(
         "object_jacobian_true": np.full((samples, r, 3), np.nan),
     }
     arm_jacobians = []
+    data, camera_frame = robot.data, robot.camera_frame_id
     for i, (t, q) in enumerate(zip(times, configurations, strict=True)):
         centres = target.centres(t)
-        pose = robot.camera_pose(q)
+        # the plant's own configurations: one pass of joint placements and Jacobians serves the
+        # camera's pose and Jacobian and the platform's pose (no check, no frame left behind)
+        camera_jacobian = robot.camera_jacobian_unchecked(q)
+        pose = data.oMf[camera_frame]
         image, depths = robot.camera.project_world(pose, centres)
         if np.all(depths > MIN_DEPTH):  # FeatureSet.jacobians of the same image, posed once
             out["xi_true"][i] = image.reshape(-1)[setup.features.rows]
             _, out["jacobian_true"][i], out["object_jacobian_true"][i] = (
                 setup.features.jacobians_from_measurement(
-                    robot.camera, ImageMeasurement(image, depths), robot.camera_jacobian(q),
+                    robot.camera, ImageMeasurement(image, depths), camera_jacobian,
                     pose.rotation.T,
                 )
             )  # fmt: skip
-        out["platform_pose"][i] = planar_pose(robot, q)
+        out["platform_pose"][i] = planar_of(data.oMi[1])
         out["clearance"][i] = clearance(setup.obstacles, footprint, *out["platform_pose"][i])
-        out["arm"][i] = model.arm_positions(q)
+        out["arm"][i] = arm_angles(q, model.arm_q_indices, model.arm_continuous)
         out["target"][i] = centres.mean(axis=0)
         out["target_velocity"][i] = target.motion.velocity(t)
         arm_jacobians.append(arm_jacobian(model, q))

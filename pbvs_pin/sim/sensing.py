@@ -55,6 +55,8 @@ from pbvs_pin.model.joint_angles import arm_angles
 from pbvs_pin.plant.odometry import WheelOdometry, odometry_update, read_counts
 
 if TYPE_CHECKING:
+    import pinocchio as pin
+
     from pbvs_pin.model.robot import MobileManipulator
     from pbvs_pin.sim.setup import Setup
 
@@ -76,7 +78,11 @@ def prismatic_arm_joints(model: MobileManipulator) -> np.ndarray:
 
 def planar_pose(robot: MobileManipulator, q: np.ndarray) -> np.ndarray:
     """``[x, y, heading]`` [m, m, rad] of the platform (the root joint's frame). Shape (3,)."""
-    pose = robot.base_pose(q)
+    return planar_of(robot.base_pose(q))
+
+
+def planar_of(pose: pin.SE3) -> np.ndarray:
+    """``[x, y, heading]`` [m, m, rad] of a pose on the floor. Shape (3,)."""
     rotation = pose.rotation
     return np.array([*pose.translation[:2], np.arctan2(rotation[1, 0], rotation[0, 0])])
 
