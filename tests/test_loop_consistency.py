@@ -128,6 +128,7 @@ def test_the_support_objective_in_the_compiled_step_equals_its_reference_at_the_
     assert d0 > 0.0
     laser = (1.25 * d0, 0.4)
     modular = _paths_agree(scenario, laser, False, start=start, prepare=prepare)
+    assert acted[0].barrier(start, robot.n)[0] > 0.0  # past the kept distance: it must act
     state = secondary_input(robot, start, np.array(laser), 1e-3, robot.camera_pose(start).rotation)
     push = acted[0].contribution(state, robot.n_base, robot.n)
     assert np.linalg.norm(push[robot.n_base :]) > 0.1  # the arm is pushed back

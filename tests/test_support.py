@@ -296,3 +296,26 @@ def load_robot_of(scenario):
     from pbvs_pin.sim.setup import build
 
     return build(scenario).robot
+
+
+def test_two_support_objectives_and_a_barrier_of_the_wrong_shape_are_refused():
+    """The compiled step takes one objective of each kind (GainError naming them); the law's
+    reference takes a barrier row of n + 1 entries (ShapeError naming it)."""
+    from simhelpers import controller_with_first_frame
+
+    from pbvs_pin.control.step import FusedControlStep
+    from pbvs_pin.exceptions import ShapeError
+    from pbvs_pin.sim.scenario import load_scenario
+
+    scenario = load_scenario("experiment1").with_values(**{"robot.name": "pioneer_ur5"})
+    _, control = controller_with_first_frame(scenario)
+    support = next(o for o in control.objectives if isinstance(o, KeepSupported))
+    with pytest.raises(GainError, match="KeepSupported, KeepSupported"):
+        FusedControlStep(
+            control.model, control.features, control.xi_d, control.law, control.compensator,
+            [support, support],
+        )  # fmt: skip
+    n, r = control.model.n, control.features.size
+    with pytest.raises(ShapeError, match="barrier"):
+        control.law.step(np.zeros(r), np.ones((r, n)), np.zeros((r, 3)), np.zeros(3),
+                         np.zeros(n), barrier=np.zeros(n))  # fmt: skip

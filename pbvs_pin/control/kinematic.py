@@ -429,11 +429,24 @@ class PassivityController:
             secondary, self.feature_gains(r), self.k1, self.k2, self.weight_inverse,
             self.damping, self.velocity_limits, self.feedback_law, upright, self.safety,
             *(room if room is not None else (self.room, self.room)),
-            self._no_barrier if barrier is None else np.asarray(barrier, dtype=float),
+            self._barrier(barrier),
         )  # fmt: skip
         if not law.valid:
             return self.zero_output(r)
         return law_output(law, error_px, upright[0])
+
+    def _barrier(self, barrier: np.ndarray | None) -> np.ndarray:
+        """``[b, g]`` as a float array; None gives no barrier (``b = -inf``).
+
+        Raises:
+            ShapeError: If it does not have n + 1 entries.
+        """
+        if barrier is None:
+            return self._no_barrier
+        barrier = np.asarray(barrier, dtype=float)
+        if barrier.shape != (self.n + 1,):
+            raise ShapeError("barrier", (self.n + 1,), barrier.shape)
+        return barrier
 
     def _upright(self, upright: np.ndarray | None) -> np.ndarray:
         """``[phi, j_phi]`` as a float array; None gives zeros (``j_phi = 0`` removes nothing).

@@ -347,7 +347,8 @@ class FusedControlStep:
     ) -> None:
         self.model = model
         n, r = model.n, features.size
-        [support] = [o for o in objectives if isinstance(o, KeepSupported)] or [None]
+        supports = [o for o in objectives if isinstance(o, KeepSupported)]
+        support = supports[0] if supports else None  # two are refused below
         rows = 0 if support is None else len(support.rows.offsets)
         size = layout.Sizes(n=n, r=r, nv=model.model.nv, n_arm=model.n_arm, n_support=rows)
         self.indices = layout.pack_indices(

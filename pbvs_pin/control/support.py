@@ -56,11 +56,15 @@ or the posture target's own distance from that edge where it is less (the contro
 may put the target past the edge: with the model error of the experiments, the UR3e's home
 stands 0.0045 m past it in the model and 0.019 m inside on the plant; a ``d_min`` the target
 does not keep would hold the arm against eq. (19)).
-:func:`keep_inside` projects the command onto that half-space in
-``W``'s metric, along ``W^-1 g`` (the arm's joints only), after eq. (34) and before the
-velocity limits; far from the edge ``b`` is far below any ``g u`` the arm reaches, and the
-command is left as it is. This puts standing above the image task, where the paper has no such
-row: where the barrier acts, ``u`` is not eq. (34)'s, and the image error is left to the
+:func:`keep_inside` projects the command onto that half-space in ``W``'s metric, along
+``W^-1 g`` (the arm's joints with the default diagonal ``W``), after eq. (34) and before the
+velocity limits. It acts whenever the centre of mass would approach ``d_min`` faster than
+``gamma (d - d_min)``, which can happen while every row still keeps its margin (a fast arm at
+its home's margin: ``b = -0.2`` m/s where the UR5's arm can move it at 0.5 m/s); the reference
+robot's arm cannot approach that fast, and its runs are bit for bit those without the
+barrier. It holds ``d`` in the controller's model, one row at a time, and the velocity limits
+scale the result afterwards. This puts standing above the image task, where the paper has no
+such row: where the barrier acts, ``u`` is not eq. (34)'s, and the image error is left to the
 platform (the feedback drives it where the arm may not reach). Eq. (9) is evaluated in every
 run, so a run where that costs the image error shows it.
 
@@ -255,7 +259,9 @@ def keep_inside(command: np.ndarray, weight_inverse: np.ndarray, barrier: np.nda
     .. math:: u \leftarrow u + W^{-1} g\, \frac{b - g u}{g^\top W^{-1} g}
               \quad\text{where } g u < b
 
-    the smallest change of ``u`` in ``W``'s metric that meets the row. It changes the feature
+    the smallest change of ``u`` in ``W``'s metric that meets the row, with ``g W^-1 g^T`` taken
+    at least :data:`GRADIENT_FLOOR` (an arm that can barely move the centre of mass is asked for
+    at most ``(b - g u) W^-1 g / epsilon``, as the objective is). It changes the feature
     velocity too: the image task gives what the row takes (a correction kept inside the null
     space of ``J``, so that the platform takes over, was tried: :doc:`departures`).
 
@@ -282,9 +288,9 @@ def keep_inside(command: np.ndarray, weight_inverse: np.ndarray, barrier: np.nda
     size = 0.0
     for j in range(n):
         size += barrier[1 + j] * along[j]
-    if not size > GRADIENT_FLOOR * GRADIENT_FLOOR:
+    if not size > 0.0:
         return False
-    step = (bound - rate) / size
+    step = (bound - rate) / max(size, GRADIENT_FLOOR)  # an arm that barely moves the centre
     for j in range(n):
         command[j] += step * along[j]
     return True

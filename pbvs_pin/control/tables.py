@@ -301,9 +301,9 @@ class SecondarySection(Section):
     support: bool = key(
         True,
         f"Keep the centre of mass {COM_MARGIN} m inside the platform's support polygon in the "
-        "null space, and 0.01 m inside its edges above the image task (a barrier on the "
-        "command; pbvs_pin.control.support; for a robot whose support is known: a two-wheel or "
-        "skid-steer platform with a URDF) [bool].",
+        "null space, and, above the image task, keep the command from taking it within 0.01 m "
+        "of an edge (a barrier; pbvs_pin.control.support; for a robot whose support is known: "
+        "a two-wheel or skid-steer platform with a URDF) [bool].",
     )
     k_support: float = key(
         10.0,
