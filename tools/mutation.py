@@ -83,7 +83,7 @@ MODULES = {
             "law_output",
             "PassivityController.__init__",
             "PassivityController.step",
-            "PassivityController._upright",
+            "PassivityController._row",
             "PassivityController.feature_gains",
         ),
         ("tests/test_control.py", *_CONTROLLER),

@@ -423,43 +423,30 @@ class PassivityController:
         )
         r = error_px.shape[0]
         scale = self.gains.feature_scale
-        upright = self._upright(upright)
+        upright = self._row("upright", upright, np.zeros(self.n + 1))  # j_phi = 0: no removal
         law = passivity_law(
             error_px / scale, jacobian_px / scale, object_jacobian_px / scale, target_velocity,
             secondary, self.feature_gains(r), self.k1, self.k2, self.weight_inverse,
             self.damping, self.velocity_limits, self.feedback_law, upright, self.safety,
             *(room if room is not None else (self.room, self.room)),
-            self._barrier(barrier),
+            self._row("barrier", barrier, self._no_barrier),
         )  # fmt: skip
         if not law.valid:
             return self.zero_output(r)
         return law_output(law, error_px, upright[0])
 
-    def _barrier(self, barrier: np.ndarray | None) -> np.ndarray:
-        """``[b, g]`` as a float array; None gives no barrier (``b = -inf``).
+    def _row(self, name: str, row: np.ndarray | None, absent: np.ndarray) -> np.ndarray:
+        """A row of n + 1 entries as a float array (``upright``, ``barrier``); ``absent`` for None.
 
         Raises:
-            ShapeError: If it does not have n + 1 entries.
+            ShapeError: If it does not have n + 1 entries, naming it.
         """
-        if barrier is None:
-            return self._no_barrier
-        barrier = np.asarray(barrier, dtype=float)
-        if barrier.shape != (self.n + 1,):
-            raise ShapeError("barrier", (self.n + 1,), barrier.shape)
-        return barrier
-
-    def _upright(self, upright: np.ndarray | None) -> np.ndarray:
-        """``[phi, j_phi]`` as a float array; None gives zeros (``j_phi = 0`` removes nothing).
-
-        Raises:
-            ShapeError: If it does not have n + 1 entries.
-        """
-        if upright is None:
-            return np.zeros(self.n + 1)
-        upright = np.asarray(upright, dtype=float)
-        if upright.shape != (self.n + 1,):
-            raise ShapeError("upright", (self.n + 1,), upright.shape)
-        return upright
+        if row is None:
+            return absent
+        row = np.asarray(row, dtype=float)
+        if row.shape != (self.n + 1,):
+            raise ShapeError(name, (self.n + 1,), row.shape)
+        return row
 
     def feature_gains(self, r: int) -> np.ndarray:
         """``k_i`` for ``r`` features [1/s]. Shape (r,)."""

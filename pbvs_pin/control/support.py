@@ -88,6 +88,7 @@ from pbvs_pin.control.secondary import (
     heading_term,
 )
 from pbvs_pin.exceptions import GainError
+from pbvs_pin.linalg import matmul, matvec
 from pbvs_pin.model.joint_angles import arm_difference
 from pbvs_pin.model.support import COM_MARGIN, SupportRows, at_origin
 
@@ -148,16 +149,8 @@ def row_gradient(
         normals: Inward unit normals of the support's edges. Shape (m, 2).
         row: The row.
     """
-    n_arm = arm_columns.shape[1]
-    g = np.zeros(n_arm)
-    for j in range(n_arm):
-        along_x, along_y = 0.0, 0.0  # the centre's velocity on the floor per unit of joint j
-        for k in range(arm_columns.shape[0]):
-            if arm_columns[k, j] != 0.0:
-                along_x += centre_jacobian[0, k] * arm_columns[k, j]
-                along_y += centre_jacobian[1, k] * arm_columns[k, j]
-        g[j] = normals[row, 0] * along_x + normals[row, 1] * along_y
-    return g
+    along = matmul(centre_jacobian[:2], arm_columns)  # the centre's floor velocity per joint
+    return normals[row, 0] * along[0] + normals[row, 1] * along[1]
 
 
 @njit(cache=True, inline="always")
@@ -281,10 +274,7 @@ def keep_inside(command: np.ndarray, weight_inverse: np.ndarray, barrier: np.nda
         rate += barrier[1 + j] * command[j]
     if rate >= bound:
         return False
-    along = np.zeros(n)
-    for i in range(n):
-        for j in range(n):
-            along[i] += weight_inverse[i, j] * barrier[1 + j]
+    along = matvec(weight_inverse, barrier[1:])  # W^-1 g
     size = 0.0
     for j in range(n):
         size += barrier[1 + j] * along[j]
